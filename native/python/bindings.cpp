@@ -1,0 +1,434 @@
+// pybind11 binding of the nfield native library: the module nfield._native.
+// Only this file knows about Python. Heavy calls release the GIL; progress callbacks re-acquire it.
+// Every C++ exception becomes a Python exception (ValueError / RuntimeError / nfield._native.Cancelled).
+#include <pybind11/complex.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <climits>
+#include <cmath>
+
+#include "nfield/curvature.hpp"
+#include "nfield/errors.hpp"
+#include "nfield/mesh.hpp"
+#include "nfield/mesh_io.hpp"
+#include "nfield/operators.hpp"
+#include "nfield/singularities.hpp"
+#include "nfield/spectrum.hpp"
+#include "nfield/spline_solver.hpp"
+
+namespace py = pybind11;
+using namespace nfield;
+
+namespace {
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using IndexArray = py::array_t<long long, py::array::c_style | py::array::forcecast>;
+using ComplexArray = py::array_t<std::complex<double>, py::array::c_style | py::array::forcecast>;
+
+void require_shape(const py::array& a, py::ssize_t cols, const char* what) {
+  if (a.ndim() != 2 || a.shape(1) != cols)
+    throw InputError(std::string(what) + " must be an array of shape (k, " + std::to_string(cols) + "), got " +
+                     std::to_string(a.ndim()) + " dimension(s)" +
+                     (a.ndim() >= 2 ? " with " + std::to_string(a.shape(1)) + " columns" : std::string()));
+}
+
+Positions to_positions(const DoubleArray& a) {
+  require_shape(a, 3, "vertex positions");
+  Positions P(a.shape(0), 3);
+  std::copy(a.data(), a.data() + a.size(), P.data());
+  return P;
+}
+
+Triangles to_triangles(const IndexArray& a, const char* what = "faces") {
+  require_shape(a, 3, what);
+  Triangles T(a.shape(0), 3);
+  const long long* d = a.data();
+  for (py::ssize_t i = 0; i < a.size(); ++i) {
+    if (d[i] < INT_MIN || d[i] > INT_MAX)
+      throw InputError(std::string(what) + ": face " + std::to_string(i / 3) + " has vertex index " +
+                       std::to_string(d[i]) + ", which is out of range");
+    T.data()[i] = static_cast<int>(d[i]);
+  }
+  return T;
+}
+
+ComplexVector to_complex_vector(const ComplexArray& a, const char* what) {
+  if (a.ndim() != 1) throw InputError(std::string(what) + " must be a 1-D complex array");
+  return Eigen::Map<const ComplexVector>(a.data(), a.shape(0));
+}
+
+py::array_t<std::complex<double>> from_complex(const ComplexVector& v) {
+  py::array_t<std::complex<double>> out(v.size());
+  std::copy(v.data(), v.data() + v.size(), out.mutable_data());
+  return out;
+}
+
+py::array_t<double> from_vec3(const std::vector<Eigen::Vector3d>& v) {
+  py::array_t<double> out({static_cast<py::ssize_t>(v.size()), py::ssize_t(3)});
+  double* d = out.mutable_data();
+  for (size_t i = 0; i < v.size(); ++i)
+    for (int c = 0; c < 3; ++c) d[3 * i + c] = v[i][c];
+  return out;
+}
+
+template <class Vec>
+py::array_t<typename Vec::value_type> from_std(const Vec& v) {
+  py::array_t<typename Vec::value_type> out(v.size());
+  std::copy(v.begin(), v.end(), out.mutable_data());
+  return out;
+}
+
+py::array_t<double> from_eigen(const Eigen::VectorXd& v) {
+  py::array_t<double> out(v.size());
+  std::copy(v.data(), v.data() + v.size(), out.mutable_data());
+  return out;
+}
+
+/// Wrap a Python progress callable: called with the GIL held; a False return or an exception cancels.
+ProgressCallback wrap_progress(const py::object& callback) {
+  if (callback.is_none()) return {};
+  return [callback](double fraction) -> bool {
+    py::gil_scoped_acquire gil;
+    try {
+      py::object r = callback(fraction);
+      return r.is_none() || r.cast<bool>();
+    } catch (py::error_already_set& e) {
+      e.restore();
+      PyErr_Clear();
+      return false;
+    }
+  };
+}
+
+py::dict report_to_dict(const MeshReport& r) {
+  py::dict d;
+  d["num_input_vertices"] = r.num_input_vertices;
+  d["num_input_faces"] = r.num_input_faces;
+  d["unused_vertices"] = r.unused_vertices;
+  d["degenerate_faces"] = r.degenerate_faces;
+  d["sliver_faces"] = r.sliver_faces;
+  d["duplicate_faces"] = r.duplicate_faces;
+  d["nonmanifold_edges"] = r.nonmanifold_edges;
+  d["nonmanifold_vertices"] = r.nonmanifold_vertices;
+  d["flipped_faces"] = r.flipped_faces;
+  d["num_orientation_cuts"] = r.num_orientation_cuts;
+  d["num_boundary_edges"] = r.num_boundary_edges;
+  d["num_boundary_loops"] = r.num_boundary_loops;
+  d["num_components"] = r.num_components;
+  d["euler_characteristic"] = r.euler_characteristic;
+  d["summary"] = r.summary();
+  return d;
+}
+
+SplineKind parse_kind(const std::string& kind) {
+  if (kind == "direction") return SplineKind::Direction;
+  if (kind == "vector") return SplineKind::Vector;
+  throw ParameterError("unknown spline kind '" + kind + "' (expected 'direction' or 'vector')");
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_native, m) {
+  m.doc() = "nfield native solver: n-symmetry direction field splines on triangle meshes";
+
+  py::register_exception<Cancelled>(m, "Cancelled", PyExc_RuntimeError);
+  // Registered after Cancelled, so tried first; it leaves Cancelled to the translator above.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const InputError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const ParameterError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const ConstraintError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const SolverError& e) {
+      PyErr_SetString(PyExc_RuntimeError, e.what());
+    }
+  });
+
+  py::class_<TriangleMesh, std::shared_ptr<TriangleMesh>>(m, "Mesh", "Validated, cleaned triangle mesh")
+      .def(py::init([](const DoubleArray& positions, const IndexArray& faces) {
+             Positions P = to_positions(positions);
+             Triangles T = to_triangles(faces);
+             py::gil_scoped_release release;
+             return std::make_shared<TriangleMesh>(P, T);
+           }),
+           py::arg("positions"), py::arg("faces"))
+      .def_property_readonly("num_vertices", &TriangleMesh::num_vertices)
+      .def_property_readonly("num_faces", &TriangleMesh::num_faces)
+      .def_property_readonly("num_active_faces", &TriangleMesh::num_active_faces)
+      .def_property_readonly("positions", [](const TriangleMesh& m) {
+        py::array_t<double> out({static_cast<py::ssize_t>(m.num_vertices()), py::ssize_t(3)});
+        std::copy(m.positions().data(), m.positions().data() + m.positions().size(), out.mutable_data());
+        return out;
+      })
+      .def_property_readonly("faces", [](const TriangleMesh& m) {
+        py::array_t<int> out({static_cast<py::ssize_t>(m.num_faces()), py::ssize_t(3)});
+        std::copy(m.faces().data(), m.faces().data() + m.faces().size(), out.mutable_data());
+        return out;
+      })
+      .def_property_readonly("face_active", [](const TriangleMesh& m) {
+        py::array_t<bool> out(m.num_faces());
+        for (int f = 0; f < m.num_faces(); ++f) out.mutable_data()[f] = m.face_active(f);
+        return out;
+      })
+      .def_property_readonly("face_normals", [](const TriangleMesh& m) {
+        std::vector<Eigen::Vector3d> n(m.num_faces());
+        for (int f = 0; f < m.num_faces(); ++f) n[f] = m.face_normal(f);
+        return from_vec3(n);
+      })
+      .def_property_readonly("face_areas", [](const TriangleMesh& m) {
+        py::array_t<double> out(m.num_faces());
+        for (int f = 0; f < m.num_faces(); ++f) out.mutable_data()[f] = m.face_area(f);
+        return out;
+      })
+      .def_property_readonly("face_component", [](const TriangleMesh& m) { return from_std(m.face_component()); })
+      .def_property_readonly("num_components", [](const TriangleMesh& m) { return m.report().num_components; })
+      .def_property_readonly("total_area", &TriangleMesh::total_area)
+      .def_property_readonly("bounding_box_diagonal", &TriangleMesh::bounding_box_diagonal)
+      .def_property_readonly("content_hash", &TriangleMesh::content_hash)
+      .def("report", [](const TriangleMesh& m) { return report_to_dict(m.report()); })
+      .def("vertex_is_interior", [](const TriangleMesh& m, int v) {
+        if (v < 0 || v >= m.num_vertices()) throw InputError("vertex " + std::to_string(v) + " is out of range");
+        return m.vertex_is_interior(v);
+      })
+      .def("angle_defect", [](const TriangleMesh& m, int v) {
+        if (v < 0 || v >= m.num_vertices()) throw InputError("vertex " + std::to_string(v) + " is out of range");
+        return m.angle_defect(v);
+      })
+      .def("vertex_ring_faces", [](const TriangleMesh& m, int v) {
+        if (v < 0 || v >= m.num_vertices()) throw InputError("vertex " + std::to_string(v) + " is out of range");
+        return m.vertex_ring_faces(v);
+      })
+      .def("dual_edges", [](const TriangleMesh& m) {
+        const auto& e = m.dual_edges();
+        py::array_t<int> out({static_cast<py::ssize_t>(e.size()), py::ssize_t(4)});
+        int* d = out.mutable_data();
+        for (size_t i = 0; i < e.size(); ++i) {
+          d[4 * i] = e[i].face0;
+          d[4 * i + 1] = e[i].face1;
+          d[4 * i + 2] = e[i].vertex0;
+          d[4 * i + 3] = e[i].vertex1;
+        }
+        return out;
+      });
+
+  m.def("read_mesh", [](const std::string& path) {
+    MeshData data;
+    {
+      py::gil_scoped_release release;
+      data = read_mesh(path);
+    }
+    py::array_t<double> P({static_cast<py::ssize_t>(data.positions.rows()), py::ssize_t(3)});
+    std::copy(data.positions.data(), data.positions.data() + data.positions.size(), P.mutable_data());
+    py::array_t<int> T({static_cast<py::ssize_t>(data.triangles.rows()), py::ssize_t(3)});
+    std::copy(data.triangles.data(), data.triangles.data() + data.triangles.size(), T.mutable_data());
+    return py::make_tuple(P, T, from_std(data.triangle_polygon), data.num_polygons);
+  }, py::arg("path"), "Read OBJ/OFF/PLY: (positions, triangles, triangle_polygon, num_polygons)");
+
+  py::class_<FieldOperators, std::shared_ptr<FieldOperators>>(m, "FieldOperators",
+                                                              "Frames, n-connection and energies of a mesh")
+      .def(py::init([](std::shared_ptr<TriangleMesh> mesh, int n, const std::string& weights) {
+             const EdgeWeights w = parse_edge_weights(weights);
+             py::gil_scoped_release release;
+             return std::make_shared<FieldOperators>(mesh, n, w);
+           }),
+           py::arg("mesh"), py::arg("n"), py::arg("weights") = "geometric")
+      .def_property_readonly("n", &FieldOperators::n)
+      .def_property_readonly("weights", [](const FieldOperators& o) { return to_string(o.weights()); })
+      .def_property_readonly("mesh", [](const FieldOperators& o) {
+        return std::const_pointer_cast<TriangleMesh>(o.mesh_ptr());
+      })
+      .def_property_readonly("frames", [](const FieldOperators& o) {
+        const int F = o.mesh().num_faces();
+        py::array_t<double> out({static_cast<py::ssize_t>(F), py::ssize_t(2), py::ssize_t(3)});
+        double* d = out.mutable_data();
+        for (int f = 0; f < F; ++f)
+          for (int c = 0; c < 3; ++c) {
+            d[6 * f + c] = o.frames().x_axis(f)[c];
+            d[6 * f + 3 + c] = o.frames().y_axis(f)[c];
+          }
+        return out;
+      })
+      .def_property_readonly("mass", [](const FieldOperators& o) {
+        Eigen::VectorXd a = Eigen::VectorXd::Zero(o.mesh().num_faces());
+        for (int u = 0; u < o.num_unknowns(); ++u) a[o.face_of_unknown(u)] = o.mass()[u];
+        return from_eigen(a);
+      })
+      .def_property_readonly("connection", [](const FieldOperators& o) {
+        ComplexVector r(o.mesh().dual_edges().size());
+        for (Eigen::Index e = 0; e < r.size(); ++e) r[e] = o.transport(static_cast<int>(e));
+        return from_complex(r);
+      })
+      .def_property_readonly("weights_per_edge", [](const FieldOperators& o) {
+        Eigen::VectorXd w(o.mesh().dual_edges().size());
+        for (Eigen::Index e = 0; e < w.size(); ++e) w[e] = o.edge_weight(static_cast<int>(e));
+        return from_eigen(w);
+      })
+      .def("energy_matrix", [](const FieldOperators& o, int order) {
+        ComplexSparse E;
+        {
+          py::gil_scoped_release release;
+          E = o.energy_matrix(order);
+        }
+        std::vector<long long> rows, cols;
+        std::vector<std::complex<double>> vals;
+        for (int k = 0; k < E.outerSize(); ++k)
+          for (ComplexSparse::InnerIterator it(E, k); it; ++it) {
+            rows.push_back(o.face_of_unknown(static_cast<int>(it.row())));
+            cols.push_back(o.face_of_unknown(static_cast<int>(it.col())));
+            vals.push_back(it.value());
+          }
+        return py::make_tuple(from_std(rows), from_std(cols), from_std(vals));
+      }, py::arg("order"), "COO triplets (rows, cols, values) of S (M^-1 S)^(order-1), in face indices")
+      .def("energy", [](const FieldOperators& o, const ComplexArray& z, int order) {
+        if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4");
+        return o.energy(o.to_unknowns(to_complex_vector(z, "field")), order);
+      }, py::arg("z"), py::arg("order"))
+      .def("tangent_to_representation", [](const FieldOperators& o, const IndexArray& faces, const DoubleArray& vectors) {
+        if (faces.ndim() != 1) throw InputError("faces must be a 1-D integer array");
+        require_shape(vectors, 3, "vectors");
+        if (vectors.shape(0) != faces.shape(0)) throw InputError("faces and vectors must have the same length");
+        ComplexVector out(faces.shape(0));
+        for (py::ssize_t i = 0; i < faces.shape(0); ++i) {
+          const long long f = faces.data()[i];
+          if (f < 0 || f >= o.mesh().num_faces())
+            throw ConstraintError("face " + std::to_string(f) + " is out of range (mesh has " +
+                                  std::to_string(o.mesh().num_faces()) + " faces)");
+          if (!o.mesh().face_active(static_cast<int>(f)))
+            throw ConstraintError("face " + std::to_string(f) + " is degenerate and excluded from the field");
+          const Eigen::Vector3d v(vectors.data()[3 * i], vectors.data()[3 * i + 1], vectors.data()[3 * i + 2]);
+          if (!v.allFinite()) throw ConstraintError("vector on face " + std::to_string(f) + " is not finite");
+          out[i] = to_representation(o.frames().to_tangent(static_cast<int>(f), v), o.n());
+        }
+        return from_complex(out);
+      }, py::arg("faces"), py::arg("vectors"))
+      .def("representation_to_directions", [](const FieldOperators& o, const ComplexArray& z) {
+        const ComplexVector v = to_complex_vector(z, "field");
+        const int F = o.mesh().num_faces();
+        if (v.size() != F) throw InputError("field must have one value per face (" + std::to_string(F) + ")");
+        const int n = o.n();
+        py::array_t<double> out({static_cast<py::ssize_t>(F), static_cast<py::ssize_t>(n), py::ssize_t(3)});
+        double* d = out.mutable_data();
+        std::fill(d, d + out.size(), 0.0);
+        for (int f = 0; f < F; ++f) {
+          if (!o.mesh().face_active(f) || !(std::abs(v[f]) > 0) || !std::isfinite(std::abs(v[f]))) continue;
+          const double a = std::arg(v[f]) / n;
+          for (int k = 0; k < n; ++k) {
+            const Eigen::Vector3d t = o.frames().to_3d(f, std::polar(1.0, a + 2 * M_PI * k / n));
+            for (int c = 0; c < 3; ++c) d[(f * n + k) * 3 + c] = t[c];
+          }
+        }
+        return out;
+      }, py::arg("z"))
+      .def("ring_holonomy", [](const FieldOperators& o, int v) {
+        if (v < 0 || v >= o.mesh().num_vertices() || !o.mesh().vertex_is_interior(v))
+          throw InputError("vertex " + std::to_string(v) + " is not an interior vertex");
+        return ring_holonomy(o, v);
+      }, py::arg("vertex"));
+
+  m.def("eigen", [](std::shared_ptr<FieldOperators> ops, int k, const py::object& progress) {
+    const ProgressCallback cb = wrap_progress(progress);
+    Eigenpairs pairs;
+    {
+      py::gil_scoped_release release;
+      pairs = lowest_eigenpairs(*ops, k, cb);
+    }
+    const int F = ops->mesh().num_faces();
+    py::array_t<std::complex<double>> vecs({static_cast<py::ssize_t>(F), static_cast<py::ssize_t>(k)});
+    auto* d = vecs.mutable_data();
+    std::fill(d, d + vecs.size(), std::complex<double>(0, 0));
+    for (int u = 0; u < ops->num_unknowns(); ++u)
+      for (int c = 0; c < k; ++c) d[ops->face_of_unknown(u) * k + c] = pairs.vectors(u, c);
+    return py::make_tuple(from_eigen(pairs.values), vecs);
+  }, py::arg("ops"), py::arg("k"), py::arg("progress") = py::none(),
+        "Lowest k eigenpairs of S z = lambda M z (complex form, ascending, M-orthonormal)");
+
+  m.def("smoothest_field", [](std::shared_ptr<FieldOperators> ops) {
+    ComplexVector z;
+    {
+      py::gil_scoped_release release;
+      z = smoothest_field(*ops);
+    }
+    return from_complex(z);
+  }, py::arg("ops"));
+
+  m.def("principal_curvature", [](std::shared_ptr<TriangleMesh> mesh) {
+    PrincipalCurvature pc;
+    {
+      py::gil_scoped_release release;
+      TangentFrames frames(*mesh);
+      pc = principal_curvature(*mesh, frames);
+    }
+    py::dict d;
+    d["kmax"] = from_eigen(pc.kmax);
+    d["kmin"] = from_eigen(pc.kmin);
+    d["dir_max"] = from_vec3(pc.dir_max);
+    d["dir_min"] = from_vec3(pc.dir_min);
+    return d;
+  }, py::arg("mesh"));
+
+  m.def("alignment_field", [](std::shared_ptr<FieldOperators> ops, const std::string& kind) {
+    if (kind != "curvature-max" && kind != "curvature-min")
+      throw ParameterError("unknown alignment '" + kind + "' (expected 'curvature-max' or 'curvature-min')");
+    ComplexVector z;
+    {
+      py::gil_scoped_release release;
+      z = curvature_alignment(*ops, kind == "curvature-max");
+    }
+    return from_complex(z);
+  }, py::arg("ops"), py::arg("kind"));
+
+  m.def("singularity_indices", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& z) {
+    const auto idx = singularity_indices(*ops, to_complex_vector(z, "field"));
+    std::vector<int> v;
+    std::vector<double> x;
+    for (const auto& s : idx) {
+      v.push_back(s.vertex);
+      x.push_back(static_cast<double>(s.numerator) / ops->n());
+    }
+    return py::make_tuple(from_std(v), from_std(x));
+  }, py::arg("ops"), py::arg("z"));
+
+  m.def("strength_to_lambda", [](std::shared_ptr<FieldOperators> ops, int order, double strength) {
+    if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4");
+    return strength_to_lambda(*ops, order, strength);
+  }, py::arg("ops"), py::arg("order"), py::arg("strength"));
+
+  py::class_<ExactSolver>(m, "ExactSolver", "Exact n-field spline solver with cached factorization")
+      .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
+                       const std::string& kind, double lambda_override, const py::object& progress) {
+             ComplexVector a;
+             if (!alignment.is_none()) a = to_complex_vector(alignment.cast<ComplexArray>(), "alignment");
+             const SplineKind k = parse_kind(kind);
+             const ProgressCallback cb = wrap_progress(progress);
+             py::gil_scoped_release release;
+             return new ExactSolver(ops, order, strength, a, k, lambda_override, cb);
+           }),
+           py::arg("ops"), py::arg("order") = 2, py::arg("strength") = 1.0, py::arg("alignment") = py::none(),
+           py::arg("kind") = "direction", py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN(),
+           py::arg("progress") = py::none())
+      .def("set_direction_constraint", &ExactSolver::set_direction_constraint, py::arg("face"), py::arg("d"))
+      .def("set_vector_constraint", &ExactSolver::set_vector_constraint, py::arg("face"), py::arg("value"))
+      .def("remove_constraint", &ExactSolver::remove_constraint, py::arg("face"))
+      .def("set_singularity", &ExactSolver::set_singularity, py::arg("vertex"), py::arg("numerator"))
+      .def("remove_singularity", &ExactSolver::remove_singularity, py::arg("vertex"))
+      .def("clear_constraints", &ExactSolver::clear_constraints)
+      .def("solve", [](ExactSolver& s) {
+        ComplexVector w;
+        {
+          py::gil_scoped_release release;
+          w = s.solve();
+        }
+        return from_complex(w);
+      })
+      .def_property_readonly("lambda_", &ExactSolver::lambda)
+      .def_property_readonly("order", &ExactSolver::order)
+      .def_property_readonly("sign_fixed_faces", &ExactSolver::sign_fixed_faces)
+      .def_property_readonly("num_constraints", [](const ExactSolver& s) { return s.constraints().size(); })
+      .def_property_readonly("num_cached_columns", &ExactSolver::num_cached_columns);
+}

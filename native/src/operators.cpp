@@ -1,0 +1,110 @@
+#include "nfield/operators.hpp"
+
+#include <cmath>
+
+#include "nfield/errors.hpp"
+
+namespace nfield {
+
+EdgeWeights parse_edge_weights(const std::string& name) {
+  if (name == "geometric") return EdgeWeights::Geometric;
+  if (name == "combinatorial") return EdgeWeights::Combinatorial;
+  throw ParameterError("unknown edge weights '" + name + "' (expected 'geometric' or 'combinatorial')");
+}
+
+std::string to_string(EdgeWeights w) { return w == EdgeWeights::Geometric ? "geometric" : "combinatorial"; }
+
+FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, EdgeWeights weights)
+    : mesh_(std::move(mesh)), n_(n), weights_(weights), frames_(*mesh_), connection_(*mesh_, frames_) {
+  if (n < 1 || n > 64) throw ParameterError("symmetry n must be between 1 and 64, got " + std::to_string(n));
+  const TriangleMesh& m = *mesh_;
+  unknown_of_face_.assign(m.num_faces(), -1);
+  for (int f = 0; f < m.num_faces(); ++f) {
+    if (!m.face_active(f)) continue;
+    unknown_of_face_[f] = static_cast<int>(face_of_unknown_.size());
+    face_of_unknown_.push_back(f);
+  }
+  if (face_of_unknown_.empty()) throw InputError("the mesh has no usable (non-degenerate) face");
+  const int N = num_unknowns();
+  mass_.resize(N);
+  for (int u = 0; u < N; ++u) mass_[u] = m.face_area(face_of_unknown_[u]);
+
+  const auto& P = m.positions();
+  const auto& edges = m.dual_edges();
+  edge_weight_.resize(edges.size());
+  std::vector<Eigen::Triplet<Complex>> triplets;
+  triplets.reserve(4 * edges.size());
+  for (size_t e = 0; e < edges.size(); ++e) {
+    const DualEdge& d = edges[e];
+    double w = 1.0;
+    if (weights_ == EdgeWeights::Geometric) {
+      const double l2 = (P.row(d.vertex1) - P.row(d.vertex0)).squaredNorm();
+      w = 3.0 * l2 / (m.face_area(d.face0) + m.face_area(d.face1));
+    }
+    edge_weight_[e] = w;
+    const int a = unknown_of_face_[d.face0], b = unknown_of_face_[d.face1];
+    const Complex r = transport(static_cast<int>(e));
+    // w |r z_a - z_b|^2 = w (|z_a|^2 + |z_b|^2) - w conj(z_b) r z_a - w conj(z_a) conj(r) z_b
+    triplets.emplace_back(a, a, w);
+    triplets.emplace_back(b, b, w);
+    triplets.emplace_back(b, a, -w * r);
+    triplets.emplace_back(a, b, -w * std::conj(r));
+  }
+  harmonic_.resize(N, N);
+  harmonic_.setFromTriplets(triplets.begin(), triplets.end());
+  harmonic_.makeCompressed();
+}
+
+Complex FieldOperators::transport(int e, int from_face) const {
+  const Complex r = transport(e);
+  return mesh_->dual_edges()[e].face0 == from_face ? r : std::conj(r);
+}
+
+ComplexSparse FieldOperators::energy_matrix(int order) const {
+  if (order < 1 || order > 4)
+    throw ParameterError("energy order must be 1 (harmonic) to 4, got " + std::to_string(order));
+  ComplexSparse E = harmonic_;
+  if (order == 1) return E;
+  const Eigen::VectorXcd inv_mass = mass_.cwiseInverse().cast<Complex>();
+  const ComplexSparse MinvS = inv_mass.asDiagonal() * harmonic_;
+  for (int k = 1; k < order; ++k) E = (E * MinvS).pruned();
+  // Products are Hermitian in exact arithmetic; remove the rounding asymmetry so that
+  // Cholesky on one triangle sees the same matrix as products with the full one.
+  ComplexSparse Eh = E.adjoint();
+  E = 0.5 * (E + Eh);
+  E.makeCompressed();
+  return E;
+}
+
+double FieldOperators::energy(const ComplexVector& z, int order) const {
+  if (order == 1) return (z.adjoint() * (harmonic_ * z)).value().real();
+  // E_m = S (M^-1 S)^(m-1): apply S and M^-1 alternately instead of forming the product.
+  // For even m, z^H E_m z = |L^{m/2} z|_M^2; computing it as a sum keeps it non-negative.
+  ComplexVector y = z;
+  for (int k = 0; k < order; ++k) {
+    y = harmonic_ * y;
+    if (k + 1 < order) y = y.cwiseQuotient(mass_.cast<Complex>());
+  }
+  return (z.adjoint() * y).value().real();
+}
+
+ComplexVector FieldOperators::to_unknowns(const ComplexVector& per_face) const {
+  if (per_face.size() != mesh_->num_faces())
+    throw InputError("expected one value per face (" + std::to_string(mesh_->num_faces()) + "), got " +
+                     std::to_string(per_face.size()));
+  ComplexVector out(num_unknowns());
+  for (int u = 0; u < num_unknowns(); ++u) out[u] = per_face[face_of_unknown_[u]];
+  return out;
+}
+
+ComplexVector FieldOperators::to_faces(const ComplexVector& per_unknown) const {
+  ComplexVector out = ComplexVector::Zero(mesh_->num_faces());
+  for (int u = 0; u < num_unknowns(); ++u) out[face_of_unknown_[u]] = per_unknown[u];
+  return out;
+}
+
+double FieldOperators::eigenvalue_unit(int order) const {
+  return std::pow(4.0 * M_PI / mesh_->total_area(), order);
+}
+
+}  // namespace nfield

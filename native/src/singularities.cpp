@@ -1,0 +1,88 @@
+#include "nfield/singularities.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "nfield/errors.hpp"
+
+namespace nfield {
+
+double ring_holonomy(const FieldOperators& ops, int vertex) {
+  const auto& faces = ops.mesh().vertex_ring_faces(vertex);
+  const auto& edges = ops.mesh().vertex_ring_dual_edges(vertex);
+  Complex product(1.0, 0.0);
+  for (size_t j = 0; j < faces.size(); ++j) product *= ops.transport(edges[j], faces[j]);
+  return std::arg(product);
+}
+
+/// Sum of the transport angles n * (a1 - a0) around the ring, unwrapped: equals -n * (sum of corner
+/// angles) + 2 pi n, i.e. n K_v exactly; we use the mesh's angle defect directly.
+static double ring_holonomy_angle(const FieldOperators& ops, int vertex) {
+  return ops.n() * ops.mesh().angle_defect(vertex);
+}
+
+std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const ComplexVector& field) {
+  const TriangleMesh& mesh = ops.mesh();
+  if (field.size() != mesh.num_faces())
+    throw InputError("field must have one value per face (" + std::to_string(mesh.num_faces()) + ")");
+  std::vector<VertexIndex> out;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    const auto& faces = mesh.vertex_ring_faces(v);
+    if (faces.empty()) continue;
+    const auto& edges = mesh.vertex_ring_dual_edges(v);
+    const size_t k = faces.size();
+    bool has_zero = false;
+    double sum = 0.0;
+    for (size_t j = 0; j < k; ++j) {
+      const Complex a = field[faces[j]], b = field[faces[(j + 1) % k]];
+      if (a == 0.0 || b == 0.0 || !std::isfinite(std::abs(a)) || !std::isfinite(std::abs(b))) {
+        has_zero = true;
+        break;
+      }
+      sum += std::arg(b * std::conj(ops.transport(edges[j], faces[j]) * a));
+    }
+    if (has_zero) continue;
+    const double turns = (sum + ring_holonomy_angle(ops, v)) / (2.0 * M_PI);
+    const int numerator = static_cast<int>(std::lround(turns));
+    if (numerator != 0) out.push_back({v, numerator});
+  }
+  return out;
+}
+
+std::vector<ConstraintRow> singularity_constraint_rows(const FieldOperators& ops, int vertex, int numerator) {
+  const TriangleMesh& mesh = ops.mesh();
+  const int n = ops.n();
+  if (vertex < 0 || vertex >= mesh.num_vertices())
+    throw ConstraintError("singularity vertex " + std::to_string(vertex) + " is out of range (mesh has " +
+                          std::to_string(mesh.num_vertices()) + " vertices)");
+  const auto& faces = mesh.vertex_ring_faces(vertex);
+  if (faces.empty())
+    throw ConstraintError("vertex " + std::to_string(vertex) +
+                          " cannot carry a singularity: it is on a boundary, non-manifold, unused, or next to "
+                          "a degenerate face (only interior vertices have an index)");
+  const int k = static_cast<int>(faces.size());
+  const double K = mesh.angle_defect(vertex);
+  const double delta = (2.0 * M_PI * numerator - n * K) / k;
+  if (std::abs(delta) >= M_PI * (1.0 - 1e-9)) {
+    std::ostringstream msg;
+    const double center = K / (2.0 * M_PI), half = k / (2.0 * n);
+    msg.precision(4);
+    msg << "vertex " << vertex << " cannot carry index " << numerator << "/" << n << ": its ring has " << k
+        << " faces and angle defect " << K << " rad, so the index must lie strictly between "
+        << center - half << " and " << center + half << " (|index - K/2pi| < k/(2n))";
+    throw ConstraintError(msg.str());
+  }
+  const auto& edges = mesh.vertex_ring_dual_edges(vertex);
+  const Complex twist = std::polar(1.0, delta);
+  std::vector<ConstraintRow> rows;
+  rows.reserve(2 * (k - 1));
+  for (int j = 0; j + 1 < k; ++j) {
+    const Complex rho = ops.transport(edges[j], faces[j]) * twist;
+    auto [re, im] = complex_equation_rows({{faces[j + 1], Complex(1, 0)}, {faces[j], -rho}}, Complex(0, 0));
+    rows.push_back(std::move(re));
+    rows.push_back(std::move(im));
+  }
+  return rows;
+}
+
+}  // namespace nfield

@@ -1,0 +1,341 @@
+#include "nfield/spline_solver.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "nfield/errors.hpp"
+#include "nfield/singularities.hpp"
+
+namespace nfield {
+
+double strength_to_lambda(const FieldOperators& ops, int order, double strength) {
+  if (!std::isfinite(strength) || strength <= 0)
+    throw ParameterError("alignment strength must be a finite number > 0, got " + std::to_string(strength));
+  return -strength * ops.eigenvalue_unit(order);
+}
+
+ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength,
+                         const ComplexVector& alignment, SplineKind kind, double lambda_override,
+                         const ProgressCallback& progress)
+    : ops_(std::move(ops)), order_(order), kind_(kind) {
+  const FieldOperators& o = *ops_;
+  const int N = o.num_unknowns();
+  if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
+  const bool has_alignment = alignment.size() > 0;
+  if (has_alignment) {
+    if (alignment.size() != o.mesh().num_faces())
+      throw InputError("alignment field must have one value per face (" + std::to_string(o.mesh().num_faces()) +
+                       "), got " + std::to_string(alignment.size()));
+    if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
+    alignment_ = o.to_unknowns(alignment);
+  } else {
+    alignment_ = ComplexVector::Zero(N);
+  }
+  if (std::isfinite(lambda_override)) {
+    lambda_ = lambda_override;
+  } else if (kind == SplineKind::Vector && !has_alignment) {
+    lambda_ = -1e-10 * o.eigenvalue_unit(order);
+  } else {
+    lambda_ = strength_to_lambda(o, order, strength);
+  }
+  // s of the +d safeguard (see header): 100 x the RMS alignment magnitude, per average face area.
+  double sum = 0;
+  int count = 0;
+  for (int u = 0; u < N; ++u)
+    if (std::abs(alignment_[u]) > 0) sum += std::norm(alignment_[u]), ++count;
+  spike_ = 100.0 * (count ? std::sqrt(sum / count) : 1.0);
+
+  component_has_alignment_.assign(std::max(1, o.mesh().report().num_components), false);
+  for (int u = 0; u < N; ++u)
+    if (std::abs(alignment_[u]) > 0) component_has_alignment_[o.mesh().face_component()[o.face_of_unknown(u)]] = true;
+
+  if (progress && !progress(0.0)) throw Cancelled("factorization cancelled");
+  ComplexSparse V = o.energy_matrix(order);
+  for (int u = 0; u < N; ++u) V.coeffRef(u, u) -= lambda_ * o.mass()[u];
+  factor_.compute(V);
+  if (factor_.info() != Eigen::Success)
+    throw SolverError("factorization of B - lambda M failed: the matrix is not positive definite (lambda=" +
+                      std::to_string(lambda_) + ")");
+  const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
+  const ComplexVector b = rhs_scale * o.mass().cast<Complex>().cwiseProduct(alignment_);
+  base_response_ = apply_inverse(b);
+  if (progress && !progress(1.0)) throw Cancelled("factorization cancelled");
+}
+
+ComplexVector ExactSolver::apply_inverse(const ComplexVector& b) const {
+  ComplexVector x = factor_.solve(b);
+  if (!x.allFinite()) throw SolverError("back-substitution produced non-finite values");
+  return x;
+}
+
+void ExactSolver::check_face(int face) const {
+  const TriangleMesh& mesh = ops_->mesh();
+  if (face < 0 || face >= mesh.num_faces())
+    throw ConstraintError("face " + std::to_string(face) + " is out of range (mesh has " +
+                          std::to_string(mesh.num_faces()) + " faces)");
+  if (!mesh.face_active(face))
+    throw ConstraintError("face " + std::to_string(face) + " is degenerate and excluded from the field");
+}
+
+void ExactSolver::set_direction_constraint(int face, Complex d) {
+  check_face(face);
+  const double len = std::abs(d);
+  if (!std::isfinite(len) || len <= 1e-12)
+    throw ConstraintError("direction constraint on face " + std::to_string(face) + " has a zero or invalid direction");
+  constraints_.faces[face] = {ConstraintSet::Kind::Direction, d / len};
+}
+
+void ExactSolver::set_vector_constraint(int face, Complex value) {
+  check_face(face);
+  if (!std::isfinite(std::abs(value)))
+    throw ConstraintError("vector constraint on face " + std::to_string(face) + " is not finite");
+  constraints_.faces[face] = {ConstraintSet::Kind::Vector, value};
+}
+
+void ExactSolver::remove_constraint(int face) {
+  if (!constraints_.faces.erase(face))
+    throw ConstraintError("face " + std::to_string(face) + " has no constraint to remove");
+}
+
+void ExactSolver::set_singularity(int vertex, int numerator) {
+  auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
+  constraints_.singularities[vertex] = numerator;
+  singularity_rows_[vertex] = std::move(rows);
+}
+
+void ExactSolver::remove_singularity(int vertex) {
+  if (!constraints_.singularities.erase(vertex))
+    throw ConstraintError("vertex " + std::to_string(vertex) + " has no singularity constraint to remove");
+  singularity_rows_.erase(vertex);
+}
+
+void ExactSolver::clear_constraints() {
+  constraints_ = ConstraintSet{};
+  singularity_rows_.clear();
+}
+
+void ExactSolver::ensure_columns(const std::vector<int>& faces) {
+  std::vector<int> missing;
+  for (int f : faces)
+    if (!columns_.count(f)) missing.push_back(f);
+  if (missing.empty()) return;
+  const int N = ops_->num_unknowns();
+  Eigen::MatrixXcd E = Eigen::MatrixXcd::Zero(N, missing.size());
+  for (size_t j = 0; j < missing.size(); ++j) E(ops_->unknown_of_face(missing[j]), j) = 1.0;
+  Eigen::MatrixXcd G = factor_.solve(E);
+  if (!G.allFinite()) throw SolverError("back-substitution produced non-finite values");
+  for (size_t j = 0; j < missing.size(); ++j) columns_[missing[j]] = G.col(j);
+}
+
+std::vector<ConstraintRow> ExactSolver::build_rows(const std::vector<int>& pinned, double pin_magnitude) const {
+  std::vector<ConstraintRow> rows;
+  for (const auto& [face, c] : constraints_.faces) {
+    const bool pin = std::binary_search(pinned.begin(), pinned.end(), face);
+    if (c.kind == ConstraintSet::Kind::Direction && !pin) {
+      ConstraintRow r;
+      r.terms.emplace_back(face, Complex(0, 1) * c.value);  // <u, J d> = Re(conj(i d) u)
+      rows.push_back(std::move(r));
+    } else {
+      const Complex value = c.kind == ConstraintSet::Kind::Vector ? c.value : pin_magnitude * c.value;
+      auto [re, im] = complex_equation_rows({{face, Complex(1, 0)}}, value);
+      rows.push_back(std::move(re));
+      rows.push_back(std::move(im));
+    }
+  }
+  for (const auto& [vertex, rs] : singularity_rows_) rows.insert(rows.end(), rs.begin(), rs.end());
+  return rows;
+}
+
+ComplexVector ExactSolver::schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y) const {
+  const int R = static_cast<int>(rows.size());
+  if (R == 0) return y;
+  auto unknown = [&](int f) { return ops_->unknown_of_face(f); };
+  Eigen::MatrixXd K(R, R);
+  Eigen::VectorXd rhs(R);
+  for (int r = 0; r < R; ++r) {
+    double v = -rows[r].rhs;
+    for (const auto& [f, c] : rows[r].terms) v += (std::conj(c) * y[unknown(f)]).real();
+    rhs[r] = v;
+    for (int s = 0; s <= r; ++s) {
+      double k = 0;
+      for (const auto& [fr, cr] : rows[r].terms)
+        for (const auto& [fs, cs] : rows[s].terms) k += (std::conj(cr) * cs * columns_.at(fs)[unknown(fr)]).real();
+      K(r, s) = K(s, r) = k;
+    }
+  }
+  // K = D V^-1 D^T is positive semi-definite; it is singular exactly when rows are linearly dependent.
+  Eigen::VectorXd gamma;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(K);
+  const Eigen::VectorXd diag = ldlt.vectorD().cwiseAbs();
+  const double kmax = std::max(diag.maxCoeff(), 1e-300);
+  if (ldlt.info() == Eigen::Success && diag.minCoeff() > 1e-11 * kmax) {
+    gamma = ldlt.solve(rhs);
+  } else {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(K);
+    const Eigen::VectorXd ev = es.eigenvalues();
+    const Eigen::MatrixXd Q = es.eigenvectors();
+    const double emax = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+    const Eigen::VectorXd q = Q.transpose() * rhs;
+    gamma = Eigen::VectorXd::Zero(R);
+    const double rhs_norm = std::max(rhs.norm(), 1e-300);
+    for (int i = 0; i < R; ++i) {
+      if (ev[i] > 1e-10 * emax) {
+        gamma += Q.col(i) * (q[i] / ev[i]);
+      } else if (std::abs(q[i]) > 1e-7 * rhs_norm) {
+        // Name the constraints that carry this inconsistent combination.
+        std::set<std::string> names;
+        for (int r = 0; r < R; ++r)
+          if (std::abs(Q(r, i)) > 0.1) {
+            const int f = rows[r].terms.front().first;
+            std::string name = "face " + std::to_string(f);
+            for (const auto& [vertex, rs] : singularity_rows_)
+              for (const auto& row : rs)
+                if (row.terms.front().first == f) name = "singularity at vertex " + std::to_string(vertex);
+            names.insert(name);
+          }
+        std::ostringstream msg;
+        msg << "contradictory constraints: they cannot all hold at once (involved: ";
+        int shown = 0;
+        for (const auto& n : names) {
+          if (shown++) msg << ", ";
+          if (shown > 8) {
+            msg << "...";
+            break;
+          }
+          msg << n;
+        }
+        msg << ")";
+        throw ConstraintError(msg.str());
+      }
+    }
+  }
+  // w = y - sum_r gamma_r V^-1 D_r^T, accumulated per face so each cached column is used once.
+  std::unordered_map<int, Complex> coefficient;
+  for (int r = 0; r < R; ++r)
+    for (const auto& [f, c] : rows[r].terms) coefficient[f] += gamma[r] * c;
+  ComplexVector w = y;
+  for (const auto& [f, a] : coefficient) w -= a * columns_.at(f);
+  return w;
+}
+
+ComplexVector ExactSolver::solve() {
+  const FieldOperators& o = *ops_;
+  const TriangleMesh& mesh = o.mesh();
+  const int N = o.num_unknowns();
+  sign_fixed_.clear();
+
+  std::vector<int> faces;
+  for (const auto& [f, c] : constraints_.faces) faces.push_back(f);
+  for (const auto& [v, rs] : singularity_rows_)
+    for (const auto& r : rs)
+      for (const auto& t : r.terms) faces.push_back(t.first);
+  std::sort(faces.begin(), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  ensure_columns(faces);
+
+  // Right-hand side response y = V^-1 b with the +d safeguard u'_f = s d_f at direction constraints.
+  const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
+  ComplexVector y = base_response_;
+  const int ncomp = std::max(1, mesh.report().num_components);
+  std::vector<bool> has_data = component_has_alignment_, has_rows(ncomp, false);
+  for (const auto& [f, c] : constraints_.faces) {
+    const int comp = mesh.face_component()[f];
+    has_rows[comp] = true;
+    if (c.kind == ConstraintSet::Kind::Direction) {
+      const int u = o.unknown_of_face(f);
+      // s_f = spike * mean_area / A_f: every constrained face adds the same weight s * mean_area * d to b.
+      const double mean_area = mesh.total_area() / N;
+      const Complex delta = spike_ * (mean_area / o.mass()[u]) * c.value - alignment_[u];
+      y += (rhs_scale * o.mass()[u]) * delta * columns_.at(f);
+      has_data[comp] = true;
+    } else if (std::abs(c.value) > 0) {
+      has_data[comp] = true;
+    }
+  }
+  for (const auto& [v, rs] : singularity_rows_) has_rows[mesh.face_component()[rs.front().terms.front().first]] = true;
+
+  // Components whose only constraints are homogeneous: seed with the smoothest field (inverse iteration).
+  std::vector<bool> homogeneous(ncomp, false), empty(ncomp, false);
+  bool any_homogeneous = false, any_empty = false;
+  for (int c = 0; c < ncomp; ++c) {
+    homogeneous[c] = has_rows[c] && !has_data[c];
+    empty[c] = !has_rows[c] && !has_data[c];
+    any_homogeneous |= homogeneous[c];
+    any_empty |= empty[c];
+  }
+  if ((any_homogeneous || any_empty) && smoothest_.size() == 0) smoothest_ = o.to_unknowns(smoothest_field(o));
+  auto restrict_to = [&](const ComplexVector& z, const std::vector<bool>& mask) {
+    ComplexVector out = ComplexVector::Zero(N);
+    for (int u = 0; u < N; ++u)
+      if (mask[mesh.face_component()[o.face_of_unknown(u)]]) out[u] = z[u];
+    return out;
+  };
+
+  auto solve_with_pins = [&](const ComplexVector& response) {
+    std::vector<int> pinned;
+    double pin_magnitude = 0;
+    for (int iteration = 0;; ++iteration) {
+      ComplexVector w = schur_solve(build_rows(pinned, pin_magnitude), response);
+      std::vector<int> wrong;
+      std::vector<double> good;
+      for (const auto& [f, c] : constraints_.faces) {
+        if (c.kind != ConstraintSet::Kind::Direction || std::binary_search(pinned.begin(), pinned.end(), f)) continue;
+        const double t = (std::conj(c.value) * w[o.unknown_of_face(f)]).real();
+        if (t > 1e-8 * std::sqrt(w.squaredNorm() / N))
+          good.push_back(t);
+        else
+          wrong.push_back(f);
+      }
+      if (wrong.empty()) return w;
+      if (iteration > static_cast<int>(constraints_.faces.size()))
+        throw SolverError("could not orient every direction constraint along +d");
+      if (pinned.empty()) {
+        // Pin magnitude: the median along-d magnitude of correctly oriented constrained faces.
+        if (!good.empty()) {
+          std::nth_element(good.begin(), good.begin() + good.size() / 2, good.end());
+          pin_magnitude = good[good.size() / 2];
+        } else {
+          pin_magnitude = std::sqrt(w.squaredNorm() / N);
+        }
+        if (!(pin_magnitude > 0)) pin_magnitude = 1.0;
+      }
+      pinned.insert(pinned.end(), wrong.begin(), wrong.end());
+      std::sort(pinned.begin(), pinned.end());
+      sign_fixed_ = pinned;
+    }
+  };
+
+  ComplexVector w;
+  if (!any_homogeneous) {
+    w = solve_with_pins(y);
+  } else {
+    // Inverse iteration on the homogeneous components: their "alignment" is the current iterate.
+    ComplexVector seed = restrict_to(smoothest_, homogeneous);
+    for (int it = 0; it < 30; ++it) {
+      const ComplexVector b = o.mass().cast<Complex>().cwiseProduct(seed);
+      w = solve_with_pins(y + apply_inverse(b));
+      ComplexVector next = restrict_to(w, homogeneous);
+      const double norm = std::sqrt((next.cwiseAbs2().cwiseProduct(o.mass())).sum());
+      if (!(norm > 0)) throw SolverError("singularity constraints admit only the zero field here");
+      next *= std::sqrt(restrict_to(ComplexVector(o.mass().cast<Complex>()), homogeneous).real().sum()) / norm;
+      const double change = (next - seed).norm() / std::max(seed.norm(), 1e-300);
+      seed = next;
+      if (change < 1e-9) break;
+    }
+  }
+  if (any_empty) {
+    // Scale the fill like the rest of the solution so magnitudes stay comparable.
+    double rest = 0;
+    int count = 0;
+    for (int u = 0; u < N; ++u)
+      if (!empty[mesh.face_component()[o.face_of_unknown(u)]]) rest += std::norm(w[u]), ++count;
+    const double scale = count && rest > 0 ? std::sqrt(rest / count) : 1.0;
+    w += scale * restrict_to(smoothest_, empty);
+  }
+  return o.to_faces(w);
+}
+
+}  // namespace nfield

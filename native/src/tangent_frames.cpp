@@ -1,0 +1,31 @@
+#include "nfield/tangent_frames.hpp"
+
+#include <Eigen/Geometry>
+
+namespace nfield {
+
+TangentFrames::TangentFrames(const TriangleMesh& mesh)
+    : x_(mesh.num_faces(), Eigen::Vector3d::Zero()), y_(mesh.num_faces(), Eigen::Vector3d::Zero()) {
+  const auto& P = mesh.positions();
+  const auto& F = mesh.faces();
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    if (!mesh.face_active(f)) continue;
+    const Eigen::Vector3d e = P.row(F(f, 1)) - P.row(F(f, 0));
+    const Eigen::Vector3d& N = mesh.face_normal(f);
+    // Remove any normal component left by rounding so that the frame is exactly orthonormal.
+    const Eigen::Vector3d x = (e - e.dot(N) * N).normalized();
+    x_[f] = x;
+    y_[f] = N.cross(x);
+  }
+}
+
+LeviCivitaConnection::LeviCivitaConnection(const TriangleMesh& mesh, const TangentFrames& frames) {
+  const auto& P = mesh.positions();
+  angle_.reserve(mesh.dual_edges().size());
+  for (const DualEdge& d : mesh.dual_edges()) {
+    const Eigen::Vector3d e = P.row(d.vertex1) - P.row(d.vertex0);
+    angle_.push_back(frames.angle_of(d.face1, e) - frames.angle_of(d.face0, e));
+  }
+}
+
+}  // namespace nfield
