@@ -149,15 +149,34 @@ std::vector<ConstraintRow> ExactSolver::build_rows(const std::vector<int>& pinne
   return rows;
 }
 
-ComplexVector ExactSolver::schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y) const {
+Complex ExactSolver::Response::at(const ExactSolver& s, int face) const {
+  const int u = s.ops_->unknown_of_face(face);
+  Complex v = (*base)[u];
+  for (const auto& [f, a] : coefficient) v += a * s.columns_.at(f)[u];
+  return v;
+}
+
+ComplexVector ExactSolver::Response::assemble(const ExactSolver& s) const {
+  ComplexVector w = *base;
+  for (const auto& [f, a] : coefficient)
+    if (a != 0.0) w += a * s.columns_.at(f);
+  return w;
+}
+
+ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>& rows, const Response& y) const {
   const int R = static_cast<int>(rows.size());
   if (R == 0) return y;
   auto unknown = [&](int f) { return ops_->unknown_of_face(f); };
+  // y at every constrained face, once.
+  std::unordered_map<int, Complex> y_at;
+  for (const auto& row : rows)
+    for (const auto& t : row.terms)
+      if (!y_at.count(t.first)) y_at[t.first] = y.at(*this, t.first);
   Eigen::MatrixXd K(R, R);
   Eigen::VectorXd rhs(R);
   for (int r = 0; r < R; ++r) {
     double v = -rows[r].rhs;
-    for (const auto& [f, c] : rows[r].terms) v += (std::conj(c) * y[unknown(f)]).real();
+    for (const auto& [f, c] : rows[r].terms) v += (std::conj(c) * y_at[f]).real();
     rhs[r] = v;
     for (int s = 0; s <= r; ++s) {
       double k = 0;
@@ -212,12 +231,10 @@ ComplexVector ExactSolver::schur_solve(const std::vector<ConstraintRow>& rows, c
       }
     }
   }
-  // w = y - sum_r gamma_r V^-1 D_r^T, accumulated per face so each cached column is used once.
-  std::unordered_map<int, Complex> coefficient;
+  // w = y - sum_r gamma_r V^-1 D_r^T, kept as coefficients of the cached columns.
+  Response w = y;
   for (int r = 0; r < R; ++r)
-    for (const auto& [f, c] : rows[r].terms) coefficient[f] += gamma[r] * c;
-  ComplexVector w = y;
-  for (const auto& [f, a] : coefficient) w -= a * columns_.at(f);
+    for (const auto& [f, c] : rows[r].terms) w.coefficient[f] -= gamma[r] * c;
   return w;
 }
 
@@ -238,7 +255,7 @@ ComplexVector ExactSolver::solve() {
 
   // Right-hand side response y = V^-1 b with the +d safeguard u'_f = s d_f at direction constraints.
   const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
-  ComplexVector y = base_response_;
+  Response y{&base_response_, {}};
   const int ncomp = std::max(1, mesh.report().num_components);
   std::vector<bool> has_data = component_has_alignment_, has_rows(ncomp, false);
   for (const auto& [f, c] : constraints_.faces) {
@@ -249,7 +266,7 @@ ComplexVector ExactSolver::solve() {
       // s_f = spike * mean_area / A_f: every constrained face adds the same weight s * mean_area * d to b.
       const double mean_area = mesh.total_area() / N;
       const Complex delta = spike_ * (mean_area / o.mass()[u]) * c.value - alignment_[u];
-      y += (rhs_scale * o.mass()[u]) * delta * columns_.at(f);
+      y.coefficient[f] += (rhs_scale * o.mass()[u]) * delta;
       has_data[comp] = true;
     } else if (std::abs(c.value) > 0) {
       has_data[comp] = true;
@@ -274,22 +291,29 @@ ComplexVector ExactSolver::solve() {
     return out;
   };
 
-  auto solve_with_pins = [&](const ComplexVector& response) {
+  auto solve_with_pins = [&](const Response& response) {
     std::vector<int> pinned;
     double pin_magnitude = 0;
     for (int iteration = 0;; ++iteration) {
-      ComplexVector w = schur_solve(build_rows(pinned, pin_magnitude), response);
+      const Response w = schur_solve(build_rows(pinned, pin_magnitude), response);
+      // Orientation check at the direction constraints; the scale is the largest constrained value.
+      std::vector<std::pair<int, double>> along;
+      double scale = 0;
+      for (const auto& [f, c] : constraints_.faces) {
+        const Complex value = w.at(*this, f);
+        scale = std::max(scale, std::abs(value));
+        if (c.kind == ConstraintSet::Kind::Direction && !std::binary_search(pinned.begin(), pinned.end(), f))
+          along.emplace_back(f, (std::conj(c.value) * value).real());
+      }
       std::vector<int> wrong;
       std::vector<double> good;
-      for (const auto& [f, c] : constraints_.faces) {
-        if (c.kind != ConstraintSet::Kind::Direction || std::binary_search(pinned.begin(), pinned.end(), f)) continue;
-        const double t = (std::conj(c.value) * w[o.unknown_of_face(f)]).real();
-        if (t > 1e-8 * std::sqrt(w.squaredNorm() / N))
+      for (const auto& [f, t] : along) {
+        if (t > 1e-8 * scale)
           good.push_back(t);
         else
           wrong.push_back(f);
       }
-      if (wrong.empty()) return w;
+      if (wrong.empty()) return w.assemble(*this);
       if (iteration > static_cast<int>(constraints_.faces.size()))
         throw SolverError("could not orient every direction constraint along +d");
       if (pinned.empty()) {
@@ -298,7 +322,7 @@ ComplexVector ExactSolver::solve() {
           std::nth_element(good.begin(), good.begin() + good.size() / 2, good.end());
           pin_magnitude = good[good.size() / 2];
         } else {
-          pin_magnitude = std::sqrt(w.squaredNorm() / N);
+          pin_magnitude = scale;
         }
         if (!(pin_magnitude > 0)) pin_magnitude = 1.0;
       }
@@ -316,7 +340,9 @@ ComplexVector ExactSolver::solve() {
     ComplexVector seed = restrict_to(smoothest_, homogeneous);
     for (int it = 0; it < 30; ++it) {
       const ComplexVector b = o.mass().cast<Complex>().cwiseProduct(seed);
-      w = solve_with_pins(y + apply_inverse(b));
+      const ComplexVector base = base_response_ + apply_inverse(b);
+      Response shifted{&base, y.coefficient};
+      w = solve_with_pins(shifted);
       ComplexVector next = restrict_to(w, homogeneous);
       const double norm = std::sqrt((next.cwiseAbs2().cwiseProduct(o.mass())).sum());
       if (!(norm > 0)) throw SolverError("singularity constraints admit only the zero field here");

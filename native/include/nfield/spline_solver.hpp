@@ -83,7 +83,15 @@ class ExactSolver {
   void check_face(int face) const;
   void ensure_columns(const std::vector<int>& faces);
   std::vector<ConstraintRow> build_rows(const std::vector<int>& pinned, double pin_magnitude) const;
-  ComplexVector schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y) const;
+  /// A field kept as base + sum_f coefficient_f G_f, so that constraint updates touch only a few
+  /// values and the full vector is assembled once, in a single pass over the cached columns.
+  struct Response {
+    const ComplexVector* base;
+    std::unordered_map<int, Complex> coefficient;  ///< face -> weight of G_f
+    Complex at(const ExactSolver& s, int face) const;
+    ComplexVector assemble(const ExactSolver& s) const;
+  };
+  Response schur_solve(const std::vector<ConstraintRow>& rows, const Response& y) const;
   ComplexVector apply_inverse(const ComplexVector& b) const;
 
   std::shared_ptr<const FieldOperators> ops_;
