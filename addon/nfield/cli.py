@@ -1,0 +1,268 @@
+"""Command line: ``python -m nfield {eig,solve,info} ...``.
+
+Exit codes: 0 success; 2 expected failure (bad arguments or files, invalid constraints, solver errors),
+printed as one line ``nfield: error: <reason>`` on stderr; 1 unexpected internal error (one line; set
+NFIELD_DEBUG=1 for the traceback); 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import traceback
+from collections import Counter
+from typing import Sequence
+
+PROG = "nfield"
+ALIGN_CLI_CHOICES = ("none", "curvature-max", "curvature-min")
+WEIGHT_CLI_CHOICES = ("geometric", "combinatorial")
+OUT_EXTENSIONS = (".npy", ".csv")
+
+
+class CLIError(Exception):
+    """An expected failure: reported as one line, exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, exit 2 (argparse would print the usage first)
+        hint = f" (see '{self.prog} --help')"
+        self.exit(2, f"{PROG}: error: {_one_line(message)}{hint}\n")
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+# ---------------------------------------------------------------------- argument types
+def _int_at_least(lo: int, name: str):
+    def parse(s: str) -> int:
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer, got '{s}'") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{name} must be >= {lo} (got {v})")
+        return v
+    return parse
+
+
+def _order(s: str) -> int:
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"order must be an integer 1..4, got '{s}'") from None
+    if not 1 <= v <= 4:
+        raise argparse.ArgumentTypeError(f"order must be 1, 2, 3 or 4 (got {v})")
+    return v
+
+
+def _strength(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"strength must be a number > 0, got '{s}'") from None
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"strength must be a finite number > 0 (got {s})")
+    return v
+
+
+def _out_path(s: str) -> str:
+    ext = os.path.splitext(s)[1].lower()
+    if ext not in OUT_EXTENSIONS:
+        raise argparse.ArgumentTypeError(
+            f"unsupported output extension '{ext or s}' (use .npy for numpy or .csv for text)")
+    return s
+
+
+# ---------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="Design n-symmetry direction fields (n-field splines) on triangle "
+                "meshes (OBJ, OFF, PLY).",
+                epilog="Exit codes: 0 ok, 2 bad input or solver failure, 1 internal error "
+                       "(NFIELD_DEBUG=1 prints the traceback).")
+    sub = p.add_subparsers(dest="command", metavar="{eig,solve,info}")
+
+    e = sub.add_parser("eig", help="lowest eigenvalues of the connection Laplacian (JSON)",
+                       description="Print {\"eigenvalues\": [...]}: the K smallest eigenvalues of S z = lambda M z "
+                                   "for n-vector fields (complex form: each eigenvalue once, ascending).")
+    e.add_argument("mesh", metavar="MESH", help="mesh file (.obj, .off, .ply)")
+    e.add_argument("--n", type=_int_at_least(1, "n"), required=True, help="symmetry order (>= 1)")
+    e.add_argument("--k", type=_int_at_least(1, "k"), default=10, help="number of eigenvalues (default 10)")
+    e.add_argument("--weights", choices=WEIGHT_CLI_CHOICES, default="geometric",
+                   help="edge weights (default geometric)")
+    e.set_defaults(func=cmd_eig)
+
+    s = sub.add_parser("solve", help="design an n-direction field",
+                       description="Solve for an n-direction field spline with optional alignment, direction/"
+                                   "vector constraints and singularities. Constraint faces are input faces "
+                                   "(polygons for polygon OBJ files).",
+                       epilog='Files: --constraints [{"face": 12, "direction": [x, y, z]}], '
+                              '--vector-constraints [{"face": 3, "vector": [x, y, z]}], '
+                              '--singularities [{"vertex": 7, "index": 0.25}]. '
+                              "--out writes one unit 3D direction (the first of the n) per input face: "
+                              ".npy (float64 F x 3) or .csv (x,y,z per line).")
+    s.add_argument("mesh", metavar="MESH", help="mesh file (.obj, .off, .ply)")
+    s.add_argument("--n", type=_int_at_least(1, "n"), required=True, help="symmetry order (>= 1), e.g. 4")
+    s.add_argument("--order", type=_order, default=2, help="energy order 1..4 (default 2, biharmonic)")
+    s.add_argument("--align", choices=ALIGN_CLI_CHOICES, default="none", help="alignment field (default none)")
+    s.add_argument("--strength", type=_strength, default=1.0, help="alignment strength > 0 (default 1)")
+    s.add_argument("--weights", choices=WEIGHT_CLI_CHOICES, default="geometric",
+                   help="edge weights (default geometric)")
+    s.add_argument("--constraints", metavar="C.json", help="direction constraints")
+    s.add_argument("--vector-constraints", metavar="V.json", help="vector constraints")
+    s.add_argument("--singularities", metavar="S.json", help="singularity constraints")
+    s.add_argument("--out", metavar="FIELD.npy|FIELD.csv", type=_out_path, help="write the field")
+    s.add_argument("--json", action="store_true", help="print a JSON summary instead of text")
+    s.set_defaults(func=cmd_solve)
+
+    i = sub.add_parser("info", help="mesh report (JSON)",
+                       description="Print what the mesh reader and validator found, as JSON.")
+    i.add_argument("mesh", metavar="MESH", help="mesh file (.obj, .off, .ply)")
+    i.set_defaults(func=cmd_info)
+    return p
+
+
+# ---------------------------------------------------------------------- commands
+def _load_mesh(path: str):
+    from .core import Mesh
+
+    return Mesh.from_file(path)
+
+
+def _dump(obj) -> str:
+    return json.dumps(obj, allow_nan=False)
+
+
+def cmd_eig(args) -> int:
+    from .core import eigenvalues
+
+    mesh = _load_mesh(args.mesh)
+    vals = eigenvalues(mesh, args.n, args.k, weights=args.weights)
+    print(_dump({"eigenvalues": [float(v) for v in vals]}))
+    return 0
+
+
+def cmd_info(args) -> int:
+    mesh = _load_mesh(args.mesh)
+    nm = mesh.native
+    info = {
+        "file": args.mesh,
+        "vertices": mesh.num_vertices,
+        "faces": mesh.num_faces,
+        "triangles": mesh.num_triangles,
+        "active_faces": int(nm.num_active_faces),
+        "total_area": float(nm.total_area),
+        "bounding_box_diagonal": float(nm.bounding_box_diagonal),
+    }
+    info.update(mesh.report)
+    print(_dump(info))
+    return 0
+
+
+def _write_field(path: str, directions) -> None:
+    import numpy as np
+
+    arr = np.ascontiguousarray(directions, dtype=np.float64)
+    ext = os.path.splitext(path)[1].lower()
+    try:
+        if ext == ".npy":
+            np.save(path, arr)
+        else:
+            np.savetxt(path, arr, fmt="%.9g", delimiter=",")
+    except OSError as exc:
+        raise CLIError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def _format_index(x: float, n: int) -> str:
+    num = round(x * n)
+    if num == 0:
+        return "0"
+    from fractions import Fraction
+
+    f = Fraction(num, n)
+    return f"{'+' if f > 0 else '-'}{abs(f)}"
+
+
+def cmd_solve(args) -> int:
+    from .core import load_constraints, solve
+
+    if args.out:
+        parent = os.path.dirname(os.path.abspath(args.out))
+        if not os.path.isdir(parent):
+            raise CLIError(f"cannot write {args.out}: directory {parent} does not exist")
+    mesh = _load_mesh(args.mesh)
+    dirs = load_constraints(args.constraints, kind="direction") if args.constraints else []
+    vecs = load_constraints(args.vector_constraints, kind="vector") if args.vector_constraints else []
+    sings = load_constraints(args.singularities, kind="singularity") if args.singularities else []
+    result = solve(mesh, n=args.n, order=args.order, align=args.align, strength=args.strength,
+                   constraints=dirs, vector_constraints=vecs, singularities=sings, weights=args.weights)
+    if args.out:
+        _write_field(args.out, result.directions)
+    if args.json:
+        print(_dump(result.to_dict()))
+        return 0
+    counts = Counter(_format_index(i, result.n) for _, i in result.singularities)
+    by_index = ", ".join(f"{k}: {counts[k]}" for k in sorted(counts, key=lambda s: _frac_value(s)))
+    lines = [
+        f"nfield: {result.n}-direction field, order {result.order}, align {result.align} "
+        f"on {os.path.basename(args.mesh)}",
+        f"faces: {result.num_faces}",
+        f"energy: {result.energy:.6g}",
+        f"singularities: {len(result.singularities)}" + (f" (index {by_index})" if by_index else ""),
+    ]
+    if result.sign_fixed_faces:
+        lines.append(f"sign-fixed constraint faces: {len(result.sign_fixed_faces)}")
+    for line in result.mesh_report.get("summary", []) or []:
+        lines.append(f"mesh: {line}")
+    lines.append(f"time: {result.seconds:.3f} s")
+    if args.out:
+        lines.append(f"wrote {args.out}")
+    print("\n".join(lines))
+    return 0
+
+
+def _frac_value(s: str) -> float:
+    from fractions import Fraction
+
+    return float(Fraction(s))
+
+
+# ---------------------------------------------------------------------- entry point
+def main(argv: Sequence[str] | None = None) -> int:
+    debug = os.environ.get("NFIELD_DEBUG", "") not in ("", "0")
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a parse error (2, already printed)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    if getattr(args, "func", None) is None:
+        sys.stderr.write(f"{PROG}: error: missing command: choose one of eig, solve, info "
+                         f"(see '{PROG} --help')\n")
+        return 2
+    from .core import NativeModuleError
+
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{PROG}: interrupted\n")
+        return 130
+    except (CLIError, ValueError, RuntimeError, OSError, NativeModuleError) as exc:
+        if debug:
+            traceback.print_exc()
+        msg = _one_line(str(exc)) or type(exc).__name__
+        if isinstance(exc, OSError) and exc.filename and exc.strerror and str(exc.filename) not in msg:
+            msg = f"{exc.strerror}: {exc.filename}"
+        sys.stderr.write(f"{PROG}: error: {msg}\n")
+        return 2
+    except Exception as exc:  # noqa: BLE001 - last resort: one line, no traceback unless debugging
+        if debug:
+            traceback.print_exc()
+        sys.stderr.write(f"{PROG}: internal error: {type(exc).__name__}: {_one_line(str(exc))} "
+                         f"(set NFIELD_DEBUG=1 for the traceback)\n")
+        return 1
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

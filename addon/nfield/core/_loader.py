@@ -1,0 +1,74 @@
+"""Lazy access to the compiled module ``nfield._native``.
+
+Importing :mod:`nfield` or :mod:`nfield.core` never loads the compiled module; it is imported the first
+time a computation needs it, through :func:`native`. If that fails (module missing, built for another
+Python, missing shared library) the ImportError says which Python is running, which compiled files are
+in the package folder, and how to rebuild.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import sys
+from types import ModuleType
+
+__all__ = ["native", "NativeModuleError"]
+
+_module: ModuleType | None = None
+
+# "_native.cpython-311-x86_64-linux-gnu.so", "_native.cp311-win_amd64.pyd", "_native.cpython-311d-darwin.so"
+_TAG = re.compile(r"(?:cpython-|cp)(\d)(\d+)")
+
+
+class NativeModuleError(ImportError):
+    """The compiled module nfield._native could not be imported (message says why and how to fix)."""
+
+
+def _package_name() -> str:
+    # __package__ is "nfield.core" (or e.g. "bl_ext.user_default.nfield.core" inside Blender).
+    return (__package__ or "nfield.core").rpartition(".")[0] or "nfield"
+
+
+def _package_dir() -> str:
+    return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _built_for(filename: str) -> str | None:
+    m = _TAG.search(filename)
+    return f"{m.group(1)}.{m.group(2)}" if m else None
+
+
+def _describe_failure(exc: BaseException) -> str:
+    folder = _package_dir()
+    try:
+        found = sorted(f for f in os.listdir(folder) if f.startswith("_native"))
+    except OSError:
+        found = []
+    here = f"{sys.version_info.major}.{sys.version_info.minor}"
+    rebuild = f"run build_addon.py build --python {sys.executable}"
+    versions = sorted({v for v in (_built_for(f) for f in found) if v})
+    if not found:
+        what = f"no compiled module (_native*.so / _native*.pyd) is in {folder}; this is Python {here}"
+    elif versions and here not in versions:
+        what = (f"it was built for Python {', '.join(versions)}; this is Python {here} "
+                f"(files in {folder}: {', '.join(found)})")
+    else:
+        what = (f"files in {folder}: {', '.join(found)} (built for Python {', '.join(versions) or 'unknown'}; "
+                f"this is Python {here})")
+    return f"nfield's compiled module nfield._native cannot be imported ({exc}): {what}: {rebuild}"
+
+
+def native() -> ModuleType:
+    """Return the compiled module ``nfield._native``, importing it on first use.
+
+    Raises NativeModuleError (an ImportError) with the interpreter version, the compiled files found and
+    the rebuild command when it cannot be imported.
+    """
+    global _module
+    if _module is None:
+        try:
+            _module = importlib.import_module(_package_name() + "._native")
+        except ImportError as exc:
+            raise NativeModuleError(_describe_failure(exc)) from exc
+    return _module

@@ -1,0 +1,368 @@
+"""n-field splines, spectra and smoothest fields over the compiled solver (paper sections 4-7)."""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from ._loader import native
+from .constraints import (
+    DirectionConstraint,
+    SingularityConstraint,
+    VectorConstraint,
+    constraint_from_dict,
+)
+from .mesh import Mesh, _jsonable
+
+__all__ = ["FieldResult", "solve", "eigenvalues", "smoothest_field", "ALIGN_CHOICES", "WEIGHT_CHOICES"]
+
+ALIGN_CHOICES = ("none", "curvature-max", "curvature-min", "field")
+WEIGHT_CHOICES = ("geometric", "combinatorial")
+#: a 3D direction whose tangent projection is shorter than this fraction of its length is "normal"
+TANGENT_TOLERANCE = 1e-6
+#: |index * n - round(index * n)| allowed for a singularity index
+INDEX_TOLERANCE = 1e-9
+
+
+@dataclass
+class FieldResult:
+    """A designed n-direction field.
+
+    Attributes
+    ----------
+    n : symmetry order.
+    representation : complex (T,) the unit field u = w / |w| per triangle of ``mesh.native`` in the native
+        face frames (0 on excluded faces and where the solution vanishes). For triangle meshes T = F.
+    raw_solution : complex (T,) the solver's unnormalized solution w.
+    directions : float (F, 3) first of the n unit directions per input face (polygon: its first triangle);
+        zero rows on excluded faces.
+    singularities : list of (vertex, index) for every interior vertex with a non-zero index of u.
+    energy : E_order(u) = u^H E_order u of the *unit* (per-face normalized) field u, complex form, the
+        paper's scale (see docs and conventions). For smoothest_field the order is 1 (Dirichlet energy).
+    seconds : wall time of the computation (operators, solve, post-processing).
+    sign_fixed_faces : input faces whose direction constraint was pinned as a vector constraint by the
+        solver to guarantee +d (see ExactSolver.sign_fixed_faces).
+    mesh_report : the mesh report dict (indices refer to triangles).
+    """
+
+    n: int
+    order: int
+    align: str
+    strength: float | None
+    weights: str
+    representation: np.ndarray
+    raw_solution: np.ndarray
+    directions: np.ndarray
+    singularities: list[tuple[int, float]]
+    energy: float
+    seconds: float
+    sign_fixed_faces: list[int]
+    mesh_report: dict
+    lambda_: float | None = None
+    _all_directions: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
+
+    @property
+    def num_faces(self) -> int:
+        return int(self.directions.shape[0])
+
+    def all_directions(self) -> np.ndarray:
+        """float (F, n, 3): the n unit directions per input face (zeros on excluded faces)."""
+        return self._all_directions
+
+    def to_dict(self) -> dict:
+        """JSON-friendly summary without the per-face arrays (the CLI's ``--json`` object)."""
+        return _jsonable({
+            "faces": self.num_faces,
+            "n": self.n,
+            "order": self.order,
+            "align": self.align,
+            "strength": self.strength,
+            "weights": self.weights,
+            "energy": self.energy,
+            "lambda": self.lambda_,
+            "singularities": [{"vertex": int(v), "index": float(i)} for v, i in self.singularities],
+            "sign_fixed_faces": [int(f) for f in self.sign_fixed_faces],
+            "mesh_report": self.mesh_report,
+            "seconds": self.seconds,
+        })
+
+
+# ---------------------------------------------------------------------- parameter checks
+def _check_int(value: Any, name: str, lo: int, hi: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"{name} must be an integer, got {value!r}")
+    v = int(value)
+    if v < lo or (hi is not None and v > hi):
+        rng = f">= {lo}" if hi is None else f"in {lo}..{hi}"
+        raise ValueError(f"{name} must be {rng} (got {v})")
+    return v
+
+
+def _check_n(n: Any) -> int:
+    return _check_int(n, "n (symmetry order)", 1)
+
+
+def _check_order(order: Any) -> int:
+    return _check_int(order, "order (energy order)", 1, 4)
+
+
+def _check_weights(weights: Any) -> str:
+    if weights not in WEIGHT_CHOICES:
+        raise ValueError(f"unknown weights {weights!r} (expected one of {', '.join(WEIGHT_CHOICES)})")
+    return weights
+
+
+def _check_strength(strength: Any) -> float:
+    if isinstance(strength, bool):
+        raise ValueError(f"strength must be a number > 0, got {strength!r}")
+    try:
+        s = float(strength)
+    except (TypeError, ValueError):
+        raise ValueError(f"strength must be a number > 0, got {strength!r}") from None
+    if not math.isfinite(s) or s <= 0:
+        raise ValueError(f"strength must be a finite number > 0 (got {strength!r})")
+    return s
+
+
+def _check_mesh(mesh: Any) -> Mesh:
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"mesh must be an nfield.core.Mesh, got {type(mesh).__name__}")
+    if mesh.native.num_active_faces == 0:
+        raise ValueError("the mesh has no usable faces (all faces are degenerate)")
+    return mesh
+
+
+def _as_constraint(c: Any, where: str):
+    if isinstance(c, (DirectionConstraint, VectorConstraint, SingularityConstraint)):
+        return c
+    if isinstance(c, dict):
+        return constraint_from_dict(c, None, where=where)
+    raise ValueError(f"{where}: expected a DirectionConstraint, VectorConstraint, SingularityConstraint or "
+                     f"dict, got {type(c).__name__}")
+
+
+def _sort_constraints(constraints: Iterable, vector_constraints: Iterable, singularities: Iterable):
+    dirs: list[DirectionConstraint] = []
+    vecs: list[VectorConstraint] = []
+    sings: list[SingularityConstraint] = []
+    for name, items in (("constraints", constraints), ("vector_constraints", vector_constraints),
+                        ("singularities", singularities)):
+        for i, c in enumerate(items or ()):
+            c = _as_constraint(c, f"{name}[{i}]")
+            if name == "vector_constraints" and not isinstance(c, VectorConstraint):
+                raise ValueError(f"vector_constraints[{i}] is a {type(c).__name__}, expected VectorConstraint")
+            if name == "singularities" and not isinstance(c, SingularityConstraint):
+                raise ValueError(f"singularities[{i}] is a {type(c).__name__}, expected SingularityConstraint")
+            (dirs if isinstance(c, DirectionConstraint) else vecs if isinstance(c, VectorConstraint)
+             else sings).append(c)
+    return dirs, vecs, sings
+
+
+def _face_vectors(mesh: Mesh, items: Sequence, attr: str, label: str):
+    """Map input faces to triangles and check the 3D vectors: in range, active, non-zero, tangent."""
+    active = np.asarray(mesh.native.face_active, dtype=bool)
+    normals = np.asarray(mesh.native.face_normals, dtype=np.float64)
+    tris = np.empty(len(items), dtype=np.int64)
+    vecs = np.empty((len(items), 3), dtype=np.float64)
+    for k, c in enumerate(items):
+        t = mesh.face_triangle(c.face)
+        if not active[t]:
+            what = f"face {c.face}" if not mesh.has_polygons else f"face {c.face} (triangle {t})"
+            raise ValueError(f"{label} on {what}: the face is excluded from the field (degenerate: zero area, "
+                             f"repeated vertex, needle or duplicate face)")
+        d = np.asarray(getattr(c, attr), dtype=np.float64)
+        length = float(np.linalg.norm(d))
+        if length == 0.0:
+            raise ValueError(f"{label} on face {c.face}: the {attr} is the zero vector")
+        proj = d - normals[t] * float(d @ normals[t])
+        if float(np.linalg.norm(proj)) < TANGENT_TOLERANCE * length:
+            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is parallel to the face "
+                             f"normal (it has no tangent component)")
+        tris[k] = t
+        vecs[k] = d
+    return tris, vecs
+
+
+def _check_duplicates(dirs, vecs, sings) -> None:
+    seen: dict[int, str] = {}
+    for c, kind in [(c, "direction") for c in dirs] + [(c, "vector") for c in vecs]:
+        if c.face in seen:
+            raise ValueError(f"face {c.face} has more than one constraint ({seen[c.face]} and {kind}); "
+                             f"give at most one constraint per face")
+        seen[c.face] = kind
+    seen_v: set[int] = set()
+    for s in sings:
+        if s.vertex in seen_v:
+            raise ValueError(f"vertex {s.vertex} has more than one singularity constraint")
+        seen_v.add(s.vertex)
+
+
+def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], n: int) -> list[tuple[int, int]]:
+    out = []
+    for s in sings:
+        if not 0 <= s.vertex < mesh.num_vertices:
+            raise ValueError(f"singularity vertex {s.vertex} is out of range: the mesh has {mesh.num_vertices} "
+                             f"vertices (valid indices 0..{mesh.num_vertices - 1})")
+        if not mesh.native.vertex_is_interior(s.vertex):
+            raise ValueError(f"singularity vertex {s.vertex} is not an interior vertex (it is on the boundary, "
+                             f"non-manifold, unused or next to an excluded face): only interior vertices carry "
+                             f"an index")
+        num = s.index * n
+        rounded = round(num)
+        if abs(num - rounded) > INDEX_TOLERANCE:
+            raise ValueError(f"singularity index {s.index!r} at vertex {s.vertex} is not a multiple of 1/{n} "
+                             f"(for n = {n} use k/{n}, e.g. {rounded / n!r})")
+        out.append((s.vertex, int(rounded)))
+    return out
+
+
+def _normalize(w: np.ndarray) -> np.ndarray:
+    mag = np.abs(w)
+    u = np.zeros_like(w)
+    nz = mag > 0
+    u[nz] = w[nz] / mag[nz]
+    return u
+
+
+def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0) -> FieldResult:
+    nat = native()
+    all_tri = np.asarray(ops.representation_to_directions(u), dtype=np.float64)  # (T, n, 3)
+    all_faces = mesh.per_face(all_tri)
+    energy = float(ops.energy(u, order))
+    sv, si = nat.singularity_indices(ops, u)
+    sings = [(int(v), float(i)) for v, i in zip(np.asarray(sv).tolist(), np.asarray(si).tolist())]
+    tf = mesh.triangle_face
+    fixed = sorted({int(tf[int(t)]) for t in sign_fixed})
+    return FieldResult(
+        n=n, order=order, align=align, strength=strength, weights=weights,
+        representation=u, raw_solution=w,
+        directions=np.ascontiguousarray(all_faces[:, 0, :]),
+        singularities=sings, energy=energy, seconds=time.perf_counter() - t0,
+        sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, _all_directions=all_faces,
+    )
+
+
+# ---------------------------------------------------------------------- public API
+def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength: float = 1.0,
+          constraints: Iterable = (), vector_constraints: Iterable = (), singularities: Iterable = (),
+          weights: str = "geometric", alignment_field: Any = None) -> FieldResult:
+    """Design an n-direction field (n-field spline, paper sections 4-7).
+
+    mesh : nfield.core.Mesh.
+    n : symmetry order >= 1 (1 vector field, 2 line field, 4 cross field ...).
+    order : energy order 1..4 (1 harmonic, 2 biharmonic ...).
+    align : "none" | "curvature-max" | "curvature-min" | "field" (then `alignment_field` is an (F, 3) array
+        of 3D vectors per input face; their tangent length weights the alignment).
+    strength : > 0, weight of the alignment (mapped to lambda by the native strength_to_lambda).
+    constraints : DirectionConstraint (or SingularityConstraint / VectorConstraint, dispatched by type).
+    vector_constraints : VectorConstraint. With vector constraints and no direction constraints the n-vector
+        spline (eq. 8/11) is solved; otherwise the n-direction spline (eq. 9/12), with vector constraints
+        added as value constraints.
+    singularities : SingularityConstraint (index a multiple of 1/n, interior vertices only).
+    weights : "geometric" | "combinatorial".
+
+    Raises ValueError (bad parameter or constraint; the message names it) or RuntimeError (numerical failure).
+    """
+    t0 = time.perf_counter()
+    mesh = _check_mesh(mesh)
+    n = _check_n(n)
+    order = _check_order(order)
+    strength = _check_strength(strength)
+    weights = _check_weights(weights)
+    if align not in ALIGN_CHOICES:
+        raise ValueError(f"unknown align {align!r} (expected one of {', '.join(ALIGN_CHOICES)})")
+    if align == "field" and alignment_field is None:
+        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
+    if align != "field" and alignment_field is not None:
+        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
+
+    dirs, vecs, sings = _sort_constraints(constraints, vector_constraints, singularities)
+    _check_duplicates(dirs, vecs, sings)
+    d_tris, d_vecs = _face_vectors(mesh, dirs, "direction", "direction constraint")
+    v_tris, v_vecs = _face_vectors(mesh, vecs, "vector", "vector constraint")
+    sing_nums = _singularity_numerators(mesh, sings, n)
+
+    nat = native()
+    ops = nat.FieldOperators(mesh.native, n, weights)
+    active = np.asarray(mesh.native.face_active, dtype=bool)
+
+    alignment = None
+    if align in ("curvature-max", "curvature-min"):
+        alignment = np.asarray(nat.alignment_field(ops, align), dtype=np.complex128)
+    elif align == "field":
+        af = np.asarray(alignment_field, dtype=np.float64)
+        if af.shape != (mesh.num_faces, 3):
+            raise ValueError(f"alignment_field must have shape ({mesh.num_faces}, 3) (one 3D vector per input "
+                             f"face), got {af.shape}")
+        if not np.isfinite(af).all():
+            bad = int(np.flatnonzero(~np.isfinite(af).all(axis=1))[0])
+            raise ValueError(f"alignment_field has a non-finite vector at face {bad}")
+        per_tri = af[mesh.triangle_face]
+        idx = np.flatnonzero(active)
+        alignment = np.zeros(mesh.num_triangles, dtype=np.complex128)
+        alignment[idx] = np.asarray(ops.tangent_to_representation(idx, np.ascontiguousarray(per_tri[idx])))
+
+    kind = "vector" if vecs and not dirs else "direction"
+    solver = nat.ExactSolver(ops, order, strength, alignment, kind)
+
+    if len(dirs):
+        zd = np.asarray(ops.tangent_to_representation(d_tris, d_vecs), dtype=np.complex128)
+        for c, t, z in zip(dirs, d_tris, zd):
+            _native_call(solver.set_direction_constraint, (int(t), complex(z / abs(z))), mesh, c.face, int(t))
+    if len(vecs):
+        zv = np.asarray(ops.tangent_to_representation(v_tris, v_vecs), dtype=np.complex128)
+        for c, t, z in zip(vecs, v_tris, zv):
+            _native_call(solver.set_vector_constraint, (int(t), complex(z)), mesh, c.face, int(t))
+    for v, num in sing_nums:
+        solver.set_singularity(int(v), int(num))
+
+    w = np.asarray(solver.solve(), dtype=np.complex128)
+    u = _normalize(w)
+    lam = getattr(solver, "lambda_", None)
+    return _result(mesh, ops, u, w, n=n, order=order, align=align, strength=strength, weights=weights,
+                   lam=None if lam is None else float(lam), sign_fixed=list(solver.sign_fixed_faces), t0=t0)
+
+
+def _native_call(fn, args, mesh: Mesh, face: int, tri: int) -> None:
+    try:
+        fn(*args)
+    except ValueError as exc:
+        if mesh.has_polygons and face != tri:
+            raise ValueError(f"constraint on face {face} (triangle {tri}): {exc}") from None
+        raise
+
+
+def eigenvalues(mesh: Mesh, n: int, k: int, weights: str = "geometric") -> np.ndarray:
+    """The k smallest eigenvalues of S z = lambda M z (complex form: each eigenvalue once), ascending.
+
+    On a sphere of radius R they approach 2 (l (l + 1) - n^2) / R^2, l >= n (multiplicity 2l + 1).
+    """
+    mesh = _check_mesh(mesh)
+    n = _check_n(n)
+    k = _check_int(k, "k (number of eigenvalues)", 1)
+    weights = _check_weights(weights)
+    if k > mesh.native.num_active_faces:
+        raise ValueError(f"k = {k} eigenvalues requested but the mesh has only "
+                         f"{mesh.native.num_active_faces} usable faces")
+    ops = native().FieldOperators(mesh.native, n, weights)
+    vals, _vecs = native().eigen(ops, k)
+    return np.asarray(vals, dtype=np.float64)
+
+
+def smoothest_field(mesh: Mesh, n: int, weights: str = "geometric") -> FieldResult:
+    """The smoothest n-direction field (first eigenvector of each connected component), normalized per face.
+
+    Its `energy` is the harmonic energy E_1 of the unit field (order 1).
+    """
+    t0 = time.perf_counter()
+    mesh = _check_mesh(mesh)
+    n = _check_n(n)
+    weights = _check_weights(weights)
+    ops = native().FieldOperators(mesh.native, n, weights)
+    w = np.asarray(native().smoothest_field(ops), dtype=np.complex128)
+    u = _normalize(w)
+    return _result(mesh, ops, u, w, n=n, order=1, align="none", strength=None, weights=weights, lam=None,
+                   sign_fixed=[], t0=t0)
