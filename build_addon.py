@@ -1,0 +1,434 @@
+#!/usr/bin/env python3
+"""nfield developer driver: set up the machine, build the native module, run tests, demo, bench.
+
+Standard library only; run it with the system python3 from the repository root:
+
+    python3 build_addon.py setup                  # Debian packages + .venv (idempotent)
+    python3 build_addon.py build [--python PATH] [--debug] [--sanitize]
+    python3 build_addon.py test [pytest args...]  # setup + build + pytest
+    python3 build_addon.py demo                   # setup + build + the main CLI job
+    python3 build_addon.py bench [args...]        # setup + build + bench/run.py
+    python3 build_addon.py package                # (not implemented yet)
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+VENV_PY = VENV / "bin" / "python"
+ADDON_DIR = ROOT / "addon"
+PACKAGE_DIR = ADDON_DIR / "nfield"
+BUILD_ROOT = ROOT / "build"
+
+# The main job that `demo` runs (from the repository root, with PYTHONPATH=addon, in .venv).
+DEMO_COMMAND = [
+    "-m", "nfield", "solve", "tests/data/rocker-arm.obj",
+    "--n", "4", "--order", "2", "--align", "curvature-max",
+    "--constraints", "examples/rocker_constraints.json",
+    "--singularities", "examples/rocker_singularities.json",
+    "--out", "out/rocker_field.npy", "--json",
+]
+
+# Debian packages the project needs (build, tests, later Blender/Xvfb and sanitizer/fuzz work).
+APT_PACKAGES = [
+    "build-essential", "pkg-config", "cmake", "ninja-build",
+    "libeigen3-dev", "libspectra-dev", "libsuitesparse-dev", "libopenblas-dev",
+    "python3-dev", "python3-venv",          # headers for --python /usr/bin/python3 (Blender 3.4's Python)
+    "clang-14", "libclang-rt-14-dev",       # sanitizers / libFuzzer
+    "xvfb", "xdotool", "blender",           # real-window Blender tests (Debian Blender 3.4, system Python)
+    "python3-numpy",                        # NumPy for Debian's Python / Blender 3.4 (not pulled in by blender)
+]
+
+# Python packages installed into .venv (bpy 5.0.1 is a CPython 3.11 wheel).
+PIP_REQUIREMENTS = [
+    "bpy==5.0.1",
+    "numpy>=1.24,<2",
+    "pybind11>=2.11",
+    "pytest>=7",
+    "hypothesis",
+]
+VENV_PYTHON_VERSION = (3, 11)
+
+
+class Failure(Exception):
+    """An expected failure: printed as one readable message, no traceback."""
+
+    def __init__(self, message: str, code: int = 1):
+        super().__init__(message)
+        self.code = code
+
+
+def say(message: str) -> None:
+    print(f"[build_addon] {message}", flush=True)
+
+
+def _shown(arg: str) -> str:
+    """How an argument is printed: paths inside the repository relative to it, scripts elided."""
+    if "\n" in arg:
+        return "<script>"
+    prefix = str(ROOT) + os.sep
+    return arg[len(prefix):] if arg.startswith(prefix) else arg
+
+
+def run(cmd, *, env=None, cwd=ROOT, check=True, capture=False, quiet=False):
+    """Run a command, printing it first. Raises Failure on a non-zero exit when check is set."""
+    cmd = [str(c) for c in cmd]
+    if not quiet:
+        print("+ " + " ".join(_shown(c) if "\n" in c else shlex.quote(_shown(c)) for c in cmd), flush=True)
+    try:
+        proc = subprocess.run(cmd, env=env, cwd=cwd, stdin=subprocess.DEVNULL,
+                              capture_output=capture, text=True)
+    except FileNotFoundError:
+        raise Failure(f"command not found: {cmd[0]}")
+    if check and proc.returncode != 0:
+        details = ""
+        if capture and (proc.stderr or proc.stdout):
+            details = "\n" + (proc.stderr or proc.stdout).strip()
+        raise Failure(f"command failed (exit {proc.returncode}): {shlex.join(cmd)}{details}")
+    return proc
+
+
+# ---------------------------------------------------------------------------------------- setup
+
+def missing_debian_packages() -> list[str]:
+    if shutil.which("dpkg-query") is None:
+        return []
+    proc = run(["dpkg-query", "-W", "-f=${Package} ${db:Status-Status}\\n", *APT_PACKAGES],
+               check=False, capture=True)
+    installed = set()
+    for line in proc.stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[1] == "installed":
+            installed.add(parts[0].split(":")[0])
+    return [p for p in APT_PACKAGES if p not in installed]
+
+
+def setup_debian() -> None:
+    if shutil.which("dpkg-query") is None or shutil.which("apt-get") is None:
+        say("not a Debian system (no dpkg-query/apt-get): install these yourself: " + " ".join(APT_PACKAGES))
+        return
+    missing = missing_debian_packages()
+    if not missing:
+        say(f"Debian packages: all {len(APT_PACKAGES)} installed")
+        return
+    say("Debian packages missing: " + " ".join(missing))
+    prefix = []
+    if os.geteuid() != 0:
+        if shutil.which("sudo") is None:
+            raise Failure("not root and no sudo: install as root: apt-get install " + " ".join(missing))
+        prefix = ["sudo"]
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    # sudo resets the environment; pass DEBIAN_FRONTEND on its command line as well.
+    front = prefix + (["DEBIAN_FRONTEND=noninteractive"] if prefix else [])
+    run(front + ["apt-get", "update", "-q"], env=env)
+    run(front + ["apt-get", "install", "-y", "-q", "-o", "Dpkg::Use-Pty=0", *missing], env=env)
+    still = missing_debian_packages()
+    if still:
+        raise Failure("apt-get did not install: " + " ".join(still))
+
+
+def base_python_for_venv() -> str:
+    if sys.version_info[:2] == VENV_PYTHON_VERSION:
+        return sys.executable
+    name = "python%d.%d" % VENV_PYTHON_VERSION
+    found = shutil.which(name)
+    if found:
+        return found
+    raise Failure(f"need Python {name[6:]} for .venv (bpy 5.0.1 is a CPython 3.11 wheel); "
+                  f"this is {sys.version.split()[0]} and no {name} is on PATH")
+
+
+# Runs inside .venv: exit 0 when every requirement is installed and satisfied.
+_CHECK_REQUIREMENTS = r"""
+import sys
+from importlib import metadata
+try:
+    from pip._vendor.packaging.requirements import Requirement
+except Exception:
+    from packaging.requirements import Requirement
+bad = []
+for spec in sys.argv[1:]:
+    req = Requirement(spec)
+    try:
+        version = metadata.version(req.name)
+    except metadata.PackageNotFoundError:
+        bad.append(f"{spec} (not installed)")
+        continue
+    if req.specifier and not req.specifier.contains(version, prereleases=True):
+        bad.append(f"{spec} (have {version})")
+print("; ".join(bad))
+sys.exit(1 if bad else 0)
+"""
+
+
+def setup_venv() -> None:
+    if VENV.exists() and not VENV_PY.exists():
+        raise Failure(f"{VENV} exists but has no bin/python: remove it and run setup again")
+    if not VENV_PY.exists():
+        run([base_python_for_venv(), "-m", "venv", VENV])
+    proc = run([VENV_PY, "-c", "import sys; print('%d.%d' % sys.version_info[:2])"], capture=True, quiet=True)
+    have = proc.stdout.strip()
+    if have != "%d.%d" % VENV_PYTHON_VERSION:
+        raise Failure(f".venv uses Python {have}, but bpy 5.0.1 needs 3.11: remove .venv and run setup again")
+    check = run([VENV_PY, "-c", _CHECK_REQUIREMENTS, *PIP_REQUIREMENTS], check=False, capture=True)
+    if check.returncode == 0:
+        say(f"Python packages in .venv: all {len(PIP_REQUIREMENTS)} requirements satisfied")
+        return
+    say("Python packages to install: " + (check.stdout.strip() or check.stderr.strip().splitlines()[-1]))
+    run([VENV_PY, "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
+         "--no-input", *PIP_REQUIREMENTS])
+    check = run([VENV_PY, "-c", _CHECK_REQUIREMENTS, *PIP_REQUIREMENTS], check=False, capture=True)
+    if check.returncode != 0:
+        raise Failure("pip did not satisfy: " + check.stdout.strip())
+    say(f"Python packages in .venv: installed, all {len(PIP_REQUIREMENTS)} requirements satisfied")
+
+
+def link_addon_into_venv() -> None:
+    """Make `nfield` importable from .venv (so `.venv/bin/python -m nfield` works from anywhere)
+    through a .pth file naming addon/, the package's source folder (no copy to go stale)."""
+    proc = run([VENV_PY, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], capture=True, quiet=True)
+    pth = Path(proc.stdout.strip()) / "nfield-addon.pth"
+    if not pth.exists() or pth.read_text().strip() != str(ADDON_DIR):
+        pth.write_text(str(ADDON_DIR) + "\n")
+        say(f"linked {ADDON_DIR} into .venv ({pth.name})")
+
+
+def cmd_setup(_args=None) -> int:
+    setup_debian()
+    setup_venv()
+    link_addon_into_venv()
+    return 0
+
+
+# ---------------------------------------------------------------------------------------- build
+
+_INTERPRETER_INFO = r"""
+import json, os, platform, sys, sysconfig
+inc = sysconfig.get_paths().get("include") or ""
+print(json.dumps({
+    "executable": sys.executable,
+    "implementation": sys.implementation.name,
+    "version": platform.python_version(),
+    "include": inc,
+    "has_headers": os.path.isfile(os.path.join(inc, "Python.h")),
+    "ext_suffix": sysconfig.get_config_var("EXT_SUFFIX"),
+}))
+"""
+
+
+def interpreter_info(python: str) -> dict:
+    path = shutil.which(python) if os.sep not in python else python
+    if not path or not os.path.exists(path):
+        raise Failure(f"interpreter not found: {python}")
+    proc = run([path, "-c", _INTERPRETER_INFO], capture=True, check=False)
+    if proc.returncode != 0:
+        raise Failure(f"could not query interpreter {path}: {(proc.stderr or '').strip()}")
+    info = json.loads(proc.stdout)
+    info["path"] = os.path.abspath(path)
+    if not info["ext_suffix"]:
+        raise Failure(f"{path} reports no EXT_SUFFIX; cannot build an extension module for it")
+    if not info["has_headers"]:
+        raise Failure(f"{path} (Python {info['version']}) has no C headers: {info['include']}/Python.h "
+                      "is missing. On Debian install python3-dev (or python3.X-dev) for it.")
+    return info
+
+
+def pybind11_cmake_dir() -> str:
+    if not VENV_PY.exists():
+        raise Failure("no .venv: run `python3 build_addon.py setup` first")
+    proc = run([VENV_PY, "-m", "pybind11", "--cmakedir"], capture=True, check=False, quiet=True)
+    if proc.returncode != 0:
+        raise Failure("pybind11 is not installed in .venv: run `python3 build_addon.py setup` first")
+    return proc.stdout.strip()
+
+
+def check_sources() -> None:
+    if not (ROOT / "native" / "python" / "bindings.cpp").is_file():
+        raise Failure("native/python/bindings.cpp does not exist (nothing to build yet)")
+    if not list((ROOT / "native" / "src").glob("*.cpp")):
+        raise Failure("native/src/*.cpp: no sources (nothing to build yet)")
+
+
+def check_no_numpy_headers(build_dir: Path) -> None:
+    """The module must never be compiled against NumPy's C headers (ABI differs between NumPy builds)."""
+    db = build_dir / "compile_commands.json"
+    if not db.exists():
+        return
+    for entry in json.loads(db.read_text()):
+        command = entry.get("command") or " ".join(entry.get("arguments", []))
+        for token in shlex.split(command):
+            if token.startswith(("-I", "-isystem")) and "numpy" in token.lower():
+                raise Failure(f"{entry.get('file')} is compiled with NumPy's headers ({token}); "
+                              "the module must not depend on NumPy's C API")
+            if "numpy/core/include" in token or "numpy/_core/include" in token:
+                raise Failure(f"{entry.get('file')} is compiled with NumPy's headers ({token})")
+
+
+def build(python: str | None = None, debug: bool = False, sanitize: bool = False) -> Path:
+    """Configure + build; returns the path of the built module (copied into addon/nfield unless sanitize)."""
+    check_sources()
+    cmake = shutil.which("cmake")
+    if cmake is None:
+        raise Failure("cmake not found: run `python3 build_addon.py setup` first")
+    info = interpreter_info(python or str(VENV_PY))
+    pybind11_dir = pybind11_cmake_dir()
+
+    build_type = "Debug" if debug else ("RelWithDebInfo" if sanitize else "Release")
+    variant = ("asan-" if sanitize else "") + ("debug" if debug else "release")
+    tag = f"{info['implementation']}-{info['version']}-{variant}"
+    build_dir = BUILD_ROOT / tag
+    generator = "Ninja" if shutil.which("ninja") else "Unix Makefiles"
+
+    config = {
+        "CMAKE_BUILD_TYPE": build_type,
+        "NFIELD_SANITIZE": "ON" if sanitize else "OFF",
+        "pybind11_DIR": pybind11_dir,
+        "Python_EXECUTABLE": info["path"],
+        "Python_INCLUDE_DIR": info["include"],
+        "PYTHON_MODULE_EXTENSION": info["ext_suffix"],
+    }
+    if shutil.which("ccache"):
+        config["CMAKE_CXX_COMPILER_LAUNCHER"] = "ccache"
+    stamp = build_dir / "nfield-config.json"
+    wanted = {"generator": generator, "cmake": cmake, **config}
+    build_file = build_dir / ("build.ninja" if generator == "Ninja" else "Makefile")
+    previous = json.loads(stamp.read_text()) if stamp.exists() else None
+    if previous != wanted or not build_file.exists():
+        if previous is not None and previous != wanted:
+            say(f"configuration changed, reconfiguring {build_dir.relative_to(ROOT)} from scratch")
+            (build_dir / "CMakeCache.txt").unlink(missing_ok=True)
+            shutil.rmtree(build_dir / "CMakeFiles", ignore_errors=True)
+        build_dir.mkdir(parents=True, exist_ok=True)
+        run([cmake, "-S", ROOT, "-B", build_dir, "-G", generator,
+             *[f"-D{k}={v}" for k, v in config.items()]])
+        stamp.write_text(json.dumps(wanted, indent=1) + "\n")
+    build_cmd = [cmake, "--build", build_dir]
+    if generator != "Ninja":
+        build_cmd += ["--parallel", str(os.cpu_count() or 2)]
+    try:
+        run(build_cmd)
+    except Failure:
+        stamp.unlink(missing_ok=True)  # reconfigure next time, in case the configuration was the problem
+        raise
+    check_no_numpy_headers(build_dir)
+
+    module = build_dir / f"_native{info['ext_suffix']}"
+    if not module.is_file():
+        raise Failure(f"the build did not produce {module}")
+    if sanitize:
+        say(f"sanitizer build (not copied into addon/): {module}")
+        say("to use it, put it in a copy of addon/nfield and run Python with "
+            "LD_PRELOAD=\"$(gcc -print-file-name=libasan.so) $(gcc -print-file-name=libubsan.so)\" "
+            "ASAN_OPTIONS=detect_leaks=0")
+        return module
+    PACKAGE_DIR.mkdir(parents=True, exist_ok=True)
+    dest = PACKAGE_DIR / module.name
+    tmp = dest.with_name(dest.name + ".tmp")
+    shutil.copy2(module, tmp)
+    os.replace(tmp, dest)  # atomic: a process that has the old file mapped keeps working
+    say(f"built {module.relative_to(ROOT)} -> {dest.relative_to(ROOT)} (Python {info['version']}, {build_type})")
+    return module
+
+
+def cmd_build(args) -> int:
+    build(args.python, args.debug, args.sanitize)
+    return 0
+
+
+# ---------------------------------------------------------------------------------------- run things
+
+def addon_env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ADDON_DIR), env.get("PYTHONPATH", "")) if p)
+    return env
+
+
+def cmd_test(pytest_args: list[str]) -> int:
+    cmd_setup()
+    build_dir = build().parent
+    if not pytest_args and (build_dir / "CTestTestfile.cmake").exists():
+        # C++ tests (native/tests/*.cpp) exist: run them first.
+        run(["ctest", "--test-dir", build_dir, "--output-on-failure"])
+    # Select `tests` unless the arguments already name test paths.
+    names_paths = any(not a.startswith("-") and (Path(a.split("::")[0]).exists()) for a in pytest_args)
+    cmd = [VENV_PY, "-m", "pytest"] + ([] if names_paths else ["tests"]) + pytest_args
+    proc = run(cmd, env=addon_env(), check=False)
+    if proc.returncode == 5:
+        raise Failure("pytest collected no tests (exit 5)")
+    if proc.returncode != 0:
+        say(f"pytest failed (exit {proc.returncode})")
+    return proc.returncode
+
+
+def cmd_demo(_args) -> int:
+    cmd_setup()
+    build()
+    (ROOT / "out").mkdir(exist_ok=True)
+    proc = run([VENV_PY, *DEMO_COMMAND], env=addon_env(), check=False)
+    if proc.returncode != 0:
+        raise Failure(f"demo failed (exit {proc.returncode})", proc.returncode)
+    return 0
+
+
+def cmd_bench(bench_args: list[str]) -> int:
+    script = ROOT / "bench" / "run.py"
+    if not script.is_file():
+        raise Failure("bench/run.py does not exist yet")
+    cmd_setup()
+    build()
+    return run([VENV_PY, script, *bench_args], env=addon_env(), check=False).returncode
+
+
+def cmd_package(_args) -> int:
+    say("package: not implemented yet (issue 4)")
+    return 1
+
+
+# ---------------------------------------------------------------------------------------- main
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="build_addon.py", description="nfield build driver")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub.add_parser("setup", help="install Debian packages and .venv if missing (idempotent)")
+    b = sub.add_parser("build", help="build the native module and copy it into addon/nfield/")
+    b.add_argument("--python", metavar="PATH",
+                   help="build for this interpreter (default: .venv/bin/python)")
+    b.add_argument("--debug", action="store_true", help="Debug build")
+    b.add_argument("--sanitize", action="store_true",
+                   help="-fsanitize=address,undefined, separate build dir, not copied into addon/")
+    sub.add_parser("test", help="setup + build + pytest (extra arguments go to pytest)")
+    sub.add_parser("demo", help="setup + build + run the main CLI job")
+    sub.add_parser("bench", help="setup + build + bench/run.py (extra arguments go to it)")
+    sub.add_parser("package", help="build the Blender add-on zip (not implemented yet)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    try:
+        # test/bench pass every following argument through verbatim.
+        if argv and argv[0] == "test":
+            return cmd_test(argv[1:])
+        if argv and argv[0] == "bench":
+            return cmd_bench(argv[1:])
+        args = make_parser().parse_args(argv)
+        handlers = {"setup": cmd_setup, "build": cmd_build, "demo": cmd_demo, "package": cmd_package}
+        return handlers[args.command](args)
+    except Failure as exc:
+        print(f"build_addon: error: {exc}", file=sys.stderr, flush=True)
+        return exc.code
+    except KeyboardInterrupt:
+        print("build_addon: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
