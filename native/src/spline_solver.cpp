@@ -12,32 +12,50 @@
 namespace nfield {
 
 double strength_to_lambda(const FieldOperators& ops, int order, double strength) {
-  if (!std::isfinite(strength) || strength <= 0)
-    throw ParameterError("alignment strength must be a finite number > 0, got " + std::to_string(strength));
+  if (!std::isfinite(strength) || strength < kMinStrength || strength > kMaxStrength)
+    throw ParameterError("alignment strength must be between 1e-6 and 1e6, got " + std::to_string(strength));
   return -strength * ops.eigenvalue_unit(order);
 }
 
 ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength,
                          const ComplexVector& alignment, SplineKind kind, double lambda_override,
-                         const ProgressCallback& progress)
-    : ops_(std::move(ops)), order_(order), kind_(kind) {
+                         const ProgressCallback& progress, const std::vector<std::pair<int, Complex>>& frozen)
+    : ops_(std::move(ops)), frozen_(frozen), order_(order), kind_(kind) {
   const FieldOperators& o = *ops_;
-  const int N = o.num_unknowns();
+  const TriangleMesh& mesh = o.mesh();
   if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
+  for (size_t i = 0; i < frozen_.size(); ++i) {
+    const int f = frozen_[i].first;
+    check_face(f);
+    if (!std::isfinite(std::abs(frozen_[i].second)))
+      throw InputError("frozen value on face " + std::to_string(f) + " is not finite");
+    if (!frozen_index_.emplace(f, i).second) throw InputError("face " + std::to_string(f) + " is frozen twice");
+  }
+  unknown_of_face_.assign(mesh.num_faces(), -1);
+  for (int u = 0; u < o.num_unknowns(); ++u) {
+    const int f = o.face_of_unknown(u);
+    if (frozen_index_.count(f)) continue;
+    unknown_of_face_[f] = static_cast<int>(face_of_unknown_.size());
+    face_of_unknown_.push_back(f);
+  }
+  const int N = num_unknowns();
+  if (N == 0) throw ConstraintError("every face is frozen: nothing is left to solve for");
+  mass_.resize(N);
+  for (int u = 0; u < N; ++u) mass_[u] = mesh.face_area(face_of_unknown_[u]);
+
   const bool has_alignment = alignment.size() > 0;
+  alignment_ = ComplexVector::Zero(N);
   if (has_alignment) {
-    if (alignment.size() != o.mesh().num_faces())
-      throw InputError("alignment field must have one value per face (" + std::to_string(o.mesh().num_faces()) +
+    if (alignment.size() != mesh.num_faces())
+      throw InputError("alignment field must have one value per face (" + std::to_string(mesh.num_faces()) +
                        "), got " + std::to_string(alignment.size()));
     if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
-    alignment_ = o.to_unknowns(alignment);
-  } else {
-    alignment_ = ComplexVector::Zero(N);
+    for (int u = 0; u < N; ++u) alignment_[u] = alignment[face_of_unknown_[u]];
   }
   if (std::isfinite(lambda_override)) {
     lambda_ = lambda_override;
   } else if (kind == SplineKind::Vector && !has_alignment) {
-    lambda_ = -1e-10 * o.eigenvalue_unit(order);
+    lambda_ = -kVectorRegularisation * o.eigenvalue_unit(order);
   } else {
     lambda_ = strength_to_lambda(o, order, strength);
   }
@@ -48,25 +66,54 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
     if (std::abs(alignment_[u]) > 0) sum += std::norm(alignment_[u]), ++count;
   spike_ = 100.0 * (count ? std::sqrt(sum / count) : 1.0);
 
-  component_has_alignment_.assign(std::max(1, o.mesh().report().num_components), false);
+  component_has_alignment_.assign(std::max(1, mesh.report().num_components), false);
   for (int u = 0; u < N; ++u)
-    if (std::abs(alignment_[u]) > 0) component_has_alignment_[o.mesh().face_component()[o.face_of_unknown(u)]] = true;
+    if (std::abs(alignment_[u]) > 0) component_has_alignment_[mesh.face_component()[face_of_unknown_[u]]] = true;
+  for (const auto& [f, z] : frozen_)
+    if (std::abs(z) > 0) component_has_alignment_[mesh.face_component()[f]] = true;
 
   if (progress && !progress(0.0)) throw Cancelled("factorization cancelled");
-  ComplexSparse V = o.energy_matrix(order);
-  for (int u = 0; u < N; ++u) V.coeffRef(u, u) -= lambda_ * o.mass()[u];
-  factor_.compute(V);
+  // V over all active faces, then the blocks V_UU (factored) and E_UF (moves frozen values to the rhs).
+  ComplexSparse E = o.energy_matrix(order);
+  std::vector<Eigen::Triplet<Complex>> uu;
+  uu.reserve(E.nonZeros());
+  ComplexVector coupling = ComplexVector::Zero(N);  // E_UF z_F
+  for (int col = 0; col < E.outerSize(); ++col) {
+    const int fc = o.face_of_unknown(col), uc = unknown_of_face_[fc];
+    const auto frozen_col = frozen_index_.find(fc);
+    for (ComplexSparse::InnerIterator it(E, col); it; ++it) {
+      const int ur = unknown_of_face_[o.face_of_unknown(static_cast<int>(it.row()))];
+      if (ur < 0) continue;
+      if (uc >= 0)
+        uu.emplace_back(ur, uc, it.value());
+      else if (frozen_col != frozen_index_.end())
+        coupling[ur] += it.value() * frozen_[frozen_col->second].second;
+    }
+  }
+  for (int u = 0; u < N; ++u) uu.emplace_back(u, u, -lambda_ * mass_[u]);
+  system_.resize(N, N);
+  system_.setFromTriplets(uu.begin(), uu.end());
+  system_.makeCompressed();
+  factor_.compute(system_);
   if (factor_.info() != Eigen::Success)
     throw SolverError("factorization of B - lambda M failed: the matrix is not positive definite (lambda=" +
                       std::to_string(lambda_) + ")");
   const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
-  const ComplexVector b = rhs_scale * o.mass().cast<Complex>().cwiseProduct(alignment_);
+  const ComplexVector b = rhs_scale * mass_.cast<Complex>().cwiseProduct(alignment_) - coupling;
   base_response_ = apply_inverse(b);
   if (progress && !progress(1.0)) throw Cancelled("factorization cancelled");
 }
 
+ComplexVector ExactSolver::to_faces(const ComplexVector& per_unknown) const {
+  ComplexVector out = ComplexVector::Zero(ops_->mesh().num_faces());
+  for (int u = 0; u < num_unknowns(); ++u) out[face_of_unknown_[u]] = per_unknown[u];
+  for (const auto& [f, z] : frozen_) out[f] = z;  // bit-identical copy
+  return out;
+}
+
 ComplexVector ExactSolver::apply_inverse(const ComplexVector& b) const {
   ComplexVector x = factor_.solve(b);
+  x += factor_.solve(b - system_ * x);  // one step of iterative refinement
   if (!x.allFinite()) throw SolverError("back-substitution produced non-finite values");
   return x;
 }
@@ -78,6 +125,8 @@ void ExactSolver::check_face(int face) const {
                           std::to_string(mesh.num_faces()) + " faces)");
   if (!mesh.face_active(face))
     throw ConstraintError("face " + std::to_string(face) + " is degenerate and excluded from the field");
+  if (!unknown_of_face_.empty() && frozen_index_.count(face))
+    throw ConstraintError("face " + std::to_string(face) + " is frozen (outside the region being edited)");
 }
 
 void ExactSolver::set_direction_constraint(int face, Complex d) {
@@ -102,6 +151,11 @@ void ExactSolver::remove_constraint(int face) {
 
 void ExactSolver::set_singularity(int vertex, int numerator) {
   auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
+  for (const auto& row : rows)
+    for (const auto& t : row.terms)
+      if (frozen_index_.count(t.first))
+        throw ConstraintError("singularity at vertex " + std::to_string(vertex) +
+                              " touches a frozen face (outside the region being edited)");
   constraints_.singularities[vertex] = numerator;
   singularity_rows_[vertex] = std::move(rows);
 }
@@ -122,10 +176,12 @@ void ExactSolver::ensure_columns(const std::vector<int>& faces) {
   for (int f : faces)
     if (!columns_.count(f)) missing.push_back(f);
   if (missing.empty()) return;
-  const int N = ops_->num_unknowns();
+  const int N = num_unknowns();
   Eigen::MatrixXcd E = Eigen::MatrixXcd::Zero(N, missing.size());
-  for (size_t j = 0; j < missing.size(); ++j) E(ops_->unknown_of_face(missing[j]), j) = 1.0;
+  for (size_t j = 0; j < missing.size(); ++j) E(unknown_of_face_[missing[j]], j) = 1.0;
   Eigen::MatrixXcd G = factor_.solve(E);
+  const Eigen::MatrixXcd residual = E - system_ * G;
+  G += factor_.solve(residual);  // one step of iterative refinement
   if (!G.allFinite()) throw SolverError("back-substitution produced non-finite values");
   for (size_t j = 0; j < missing.size(); ++j) columns_[missing[j]] = G.col(j);
 }
@@ -150,7 +206,7 @@ std::vector<ConstraintRow> ExactSolver::build_rows(const std::vector<int>& pinne
 }
 
 Complex ExactSolver::Response::at(const ExactSolver& s, int face) const {
-  const int u = s.ops_->unknown_of_face(face);
+  const int u = s.unknown_of_face_[face];
   Complex v = (*base)[u];
   for (const auto& [f, a] : coefficient) v += a * s.columns_.at(f)[u];
   return v;
@@ -166,7 +222,7 @@ ComplexVector ExactSolver::Response::assemble(const ExactSolver& s) const {
 ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>& rows, const Response& y) const {
   const int R = static_cast<int>(rows.size());
   if (R == 0) return y;
-  auto unknown = [&](int f) { return ops_->unknown_of_face(f); };
+  auto unknown = [&](int f) { return unknown_of_face_[f]; };
   // y at every constrained face, once.
   std::unordered_map<int, Complex> y_at;
   for (const auto& row : rows)
@@ -241,7 +297,7 @@ ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>&
 ComplexVector ExactSolver::solve() {
   const FieldOperators& o = *ops_;
   const TriangleMesh& mesh = o.mesh();
-  const int N = o.num_unknowns();
+  const int N = num_unknowns();
   sign_fixed_.clear();
 
   std::vector<int> faces;
@@ -262,11 +318,11 @@ ComplexVector ExactSolver::solve() {
     const int comp = mesh.face_component()[f];
     has_rows[comp] = true;
     if (c.kind == ConstraintSet::Kind::Direction) {
-      const int u = o.unknown_of_face(f);
+      const int u = unknown_of_face_.at(f);
       // s_f = spike * mean_area / A_f: every constrained face adds the same weight s * mean_area * d to b.
-      const double mean_area = mesh.total_area() / N;
-      const Complex delta = spike_ * (mean_area / o.mass()[u]) * c.value - alignment_[u];
-      y.coefficient[f] += (rhs_scale * o.mass()[u]) * delta;
+      const double mean_area = mesh.total_area() / o.num_unknowns();
+      const Complex delta = spike_ * (mean_area / mass_[u]) * c.value - alignment_[u];
+      y.coefficient[f] += (rhs_scale * mass_[u]) * delta;
       has_data[comp] = true;
     } else if (std::abs(c.value) > 0) {
       has_data[comp] = true;
@@ -283,11 +339,15 @@ ComplexVector ExactSolver::solve() {
     any_homogeneous |= homogeneous[c];
     any_empty |= empty[c];
   }
-  if ((any_homogeneous || any_empty) && smoothest_.size() == 0) smoothest_ = o.to_unknowns(smoothest_field(o));
+  if ((any_homogeneous || any_empty) && smoothest_.size() == 0) {
+    const ComplexVector full = smoothest_field(o);
+    smoothest_.resize(N);
+    for (int u = 0; u < N; ++u) smoothest_[u] = full[face_of_unknown_[u]];
+  }
   auto restrict_to = [&](const ComplexVector& z, const std::vector<bool>& mask) {
     ComplexVector out = ComplexVector::Zero(N);
     for (int u = 0; u < N; ++u)
-      if (mask[mesh.face_component()[o.face_of_unknown(u)]]) out[u] = z[u];
+      if (mask[mesh.face_component()[face_of_unknown_[u]]]) out[u] = z[u];
     return out;
   };
 
@@ -313,7 +373,21 @@ ComplexVector ExactSolver::solve() {
         else
           wrong.push_back(f);
       }
-      if (wrong.empty()) return w.assemble(*this);
+      if (wrong.empty()) {
+        ComplexVector field = w.assemble(*this);
+        // Snap constrained faces onto their constraint: removes the rounding of the column combination
+        // (relative 1e-12 of the largest term), so constraints hold to the last bit.
+        for (const auto& [f, c] : constraints_.faces) {
+          Complex& z = field[unknown_of_face_[f]];
+          if (c.kind == ConstraintSet::Kind::Vector)
+            z = c.value;
+          else if (std::binary_search(pinned.begin(), pinned.end(), f))
+            z = pin_magnitude * c.value;
+          else
+            z = (std::conj(c.value) * z).real() * c.value;
+        }
+        return field;
+      }
       if (iteration > static_cast<int>(constraints_.faces.size()))
         throw SolverError("could not orient every direction constraint along +d");
       if (pinned.empty()) {
@@ -339,14 +413,14 @@ ComplexVector ExactSolver::solve() {
     // Inverse iteration on the homogeneous components: their "alignment" is the current iterate.
     ComplexVector seed = restrict_to(smoothest_, homogeneous);
     for (int it = 0; it < 30; ++it) {
-      const ComplexVector b = o.mass().cast<Complex>().cwiseProduct(seed);
+      const ComplexVector b = mass_.cast<Complex>().cwiseProduct(seed);
       const ComplexVector base = base_response_ + apply_inverse(b);
       Response shifted{&base, y.coefficient};
       w = solve_with_pins(shifted);
       ComplexVector next = restrict_to(w, homogeneous);
-      const double norm = std::sqrt((next.cwiseAbs2().cwiseProduct(o.mass())).sum());
+      const double norm = std::sqrt((next.cwiseAbs2().cwiseProduct(mass_)).sum());
       if (!(norm > 0)) throw SolverError("singularity constraints admit only the zero field here");
-      next *= std::sqrt(restrict_to(ComplexVector(o.mass().cast<Complex>()), homogeneous).real().sum()) / norm;
+      next *= std::sqrt(restrict_to(ComplexVector(mass_.cast<Complex>()), homogeneous).real().sum()) / norm;
       const double change = (next - seed).norm() / std::max(seed.norm(), 1e-300);
       seed = next;
       if (change < 1e-9) break;
@@ -357,11 +431,11 @@ ComplexVector ExactSolver::solve() {
     double rest = 0;
     int count = 0;
     for (int u = 0; u < N; ++u)
-      if (!empty[mesh.face_component()[o.face_of_unknown(u)]]) rest += std::norm(w[u]), ++count;
+      if (!empty[mesh.face_component()[face_of_unknown_[u]]]) rest += std::norm(w[u]), ++count;
     const double scale = count && rest > 0 ? std::sqrt(rest / count) : 1.0;
     w += scale * restrict_to(smoothest_, empty);
   }
-  return o.to_faces(w);
+  return to_faces(w);
 }
 
 }  // namespace nfield

@@ -24,8 +24,22 @@
 // the same on a mesh scaled by 1000 (lambda scales like the spectrum, 1/length^2m) and under refinement
 // (the spectrum converges). Larger strength = closer alignment. Admissible lambda is (-inf, lambda_hat_1^m)
 // (appendix B); we expose only lambda < 0, which keeps V positive definite on every mesh, including
-// meshes whose connection has trivial holonomy (there lambda_1 = 0). Without an alignment field an
-// n-vector spline uses mu = 1e-10 (4 pi/A)^m, a regularisation that only fixes the kernel of flat meshes.
+// meshes whose connection has trivial holonomy (there lambda_1 = 0). Strength is limited to [1e-6, 1e6]:
+// below, V is so close to singular on such meshes that the Schur complement loses the constraints'
+// accuracy. Without an alignment field an n-vector spline uses mu = 1e-2 (4 pi/A)^m, i.e. eq. 8 with
+// u' = 0 and a small weight: it fixes the kernel of flat meshes (a 1% pull toward zero where the spectrum
+// starts at the unit). Known limit: the Schur complement goes through V, so its accuracy is about
+// kappa(V)^2 eps. On meshes with a flat connection (planes, cylinders) kappa grows like (lambda_max /
+// mu)^m: vector splines there are accurate to ~1e-8 for m <= 2 but only ~1e-4 for m = 3, 4.
+//
+// Frozen faces (local editing, committed layers; paper section 9): faces given fixed values are not
+// unknowns. The system is V_UU w_U = b_U - E_UF z_F over the remaining faces U, so only faces within the
+// energy's stencil (order m: dual m-ring) of U matter, and the output copies every frozen value
+// bit-identically. With m >= 2 the free field joins the frozen one with a continuous derivative.
+//
+// Accuracy: every solve with V is followed by one step of iterative refinement (x += V^-1 (b - V x)),
+// which keeps constraints exact to ~1e-12 even where V is ill-conditioned (flat or cylindrical meshes,
+// whose connection has a kernel, with small lambda).
 //
 // A connected component that receives no data (zero alignment there, no constraint on it) is filled
 // with its smoothest field; a component whose only constraints are homogeneous (singularities without
@@ -45,6 +59,9 @@ namespace nfield {
 
 enum class SplineKind { Direction, Vector };
 
+constexpr double kMinStrength = 1e-6, kMaxStrength = 1e6;
+constexpr double kVectorRegularisation = 1e-2;  ///< mu / (4 pi/A)^m of n-vector splines without alignment
+
 /// lambda = -strength * (4 pi / area)^order; ParameterError unless strength is finite and > 0.
 double strength_to_lambda(const FieldOperators& ops, int order, double strength);
 
@@ -53,9 +70,10 @@ class ExactSolver {
   /// `alignment` per face (size num_faces) or empty for none. Factors V (the expensive step).
   /// `lambda_override` (if finite) replaces the strength mapping (expert use, tests); it must keep V
   /// positive definite, otherwise SolverError.
+  /// `frozen`: (face, value) pairs held fixed (see above); ConstraintError for inactive/out-of-range faces.
   ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength, const ComplexVector& alignment,
               SplineKind kind, double lambda_override = std::numeric_limits<double>::quiet_NaN(),
-              const ProgressCallback& progress = {});
+              const ProgressCallback& progress = {}, const std::vector<std::pair<int, Complex>>& frozen = {});
 
   const FieldOperators& operators() const { return *ops_; }
   int order() const { return order_; }
@@ -78,6 +96,9 @@ class ExactSolver {
   const std::vector<int>& sign_fixed_faces() const { return sign_fixed_; }
   /// Number of cached columns G_f (for diagnostics and benchmarks).
   size_t num_cached_columns() const { return columns_.size(); }
+  /// Number of unknowns of the factored system (active faces that are not frozen).
+  int num_unknowns() const { return static_cast<int>(face_of_unknown_.size()); }
+  bool face_frozen(int face) const { return frozen_index_.count(face) > 0; }
 
  private:
   void check_face(int face) const;
@@ -94,7 +115,14 @@ class ExactSolver {
   Response schur_solve(const std::vector<ConstraintRow>& rows, const Response& y) const;
   ComplexVector apply_inverse(const ComplexVector& b) const;
 
+  ComplexVector to_faces(const ComplexVector& per_unknown) const;
+
   std::shared_ptr<const FieldOperators> ops_;
+  std::vector<int> unknown_of_face_, face_of_unknown_;  ///< this system's unknowns (active, not frozen)
+  Eigen::VectorXd mass_;                                ///< face areas per unknown
+  std::vector<std::pair<int, Complex>> frozen_;
+  std::unordered_map<int, size_t> frozen_index_;
+  ComplexSparse system_;                                ///< V_UU, kept for iterative refinement
   int order_;
   SplineKind kind_;
   double lambda_;

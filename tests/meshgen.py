@@ -1,0 +1,653 @@
+"""Procedural test meshes and small numpy helpers for the nfield test suite (numpy only).
+
+Every generator returns ``(V, F)``: ``V`` float64 (n, 3) positions, ``F`` int64 (m, 3) triangles,
+consistently oriented (outward normals for closed surfaces, +z for flat meshes) unless stated.
+
+The module also holds an *independent* numpy reference of the paper's discrete operators
+(Sections 3, 4, 6 and Appendix A: frames, transport r_ij, weights w_ij, the Hermitian S, M, and
+the singularity index of Section 3). The tests compare the native code with it only through
+frame-invariant quantities (spectra, energies of 3D fields, indices), so the frame choice of
+either implementation does not matter.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# ---------------------------------------------------------------------------------------------
+# Basic surfaces
+# ---------------------------------------------------------------------------------------------
+
+
+def icosahedron(radius: float = 1.0):
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    V = np.array(
+        [[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0],
+         [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
+         [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], dtype=float)
+    F = np.array(
+        [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+         [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+         [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+         [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]], dtype=np.int64)
+    V *= radius / np.linalg.norm(V, axis=1, keepdims=True)
+    return V, F
+
+
+def project_to_sphere(radius: float = 1.0, center=(0.0, 0.0, 0.0)):
+    c = np.asarray(center, dtype=float)
+
+    def proj(V):
+        d = V - c
+        return c + radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    return proj
+
+
+def project_to_torus(R: float, r: float):
+    """Closest-point projection onto the torus of radii R (centre circle) and r (tube), axis z."""
+
+    def proj(V):
+        u = np.arctan2(V[:, 1], V[:, 0])
+        c = np.stack([R * np.cos(u), R * np.sin(u), np.zeros_like(u)], axis=1)
+        d = V - c
+        return c + r * d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    return proj
+
+
+def midpoint_subdivide(V, F, project=None, return_parent: bool = False):
+    """1-to-4 split of every triangle (a,b,c) -> (a,ab,ca), (ab,b,bc), (ca,bc,c), (ab,bc,ca).
+
+    New vertices are edge midpoints, optionally mapped by ``project`` (a function (k,3) -> (k,3),
+    applied to the new vertices only). Children of face f are faces 4f..4f+3; with
+    ``return_parent`` the parent index of every new face is returned too. Orientation is kept.
+    """
+    V = np.asarray(V, dtype=float)
+    F = np.asarray(F, dtype=np.int64)
+    nv = len(V)
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    key = np.sort(e, axis=1)
+    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    mid = 0.5 * (V[uniq[:, 0]] + V[uniq[:, 1]])
+    if project is not None:
+        mid = project(mid)
+    m = len(F)
+    ab = nv + inv[:m]
+    bc = nv + inv[m:2 * m]
+    ca = nv + inv[2 * m:]
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    F2 = np.stack([
+        np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
+        np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)], axis=1).reshape(-1, 3)
+    V2 = np.concatenate([V, mid])
+    if return_parent:
+        return V2, F2, np.repeat(np.arange(m), 4)
+    return V2, F2
+
+
+def icosphere(subdivisions: int = 2, radius: float = 1.0):
+    """Subdivided icosahedron projected to the sphere: 20*4^s faces, chi = 2."""
+    V, F = icosahedron(radius)
+    proj = project_to_sphere(radius)
+    for _ in range(subdivisions):
+        V, F = midpoint_subdivide(V, F, project=proj)
+    return V, F
+
+
+def _grid_faces(nu, nv, idx, rng, random_diagonals, periodic_u, periodic_v):
+    """Triangulate the quads (i,j),(i+1,j),(i+1,j+1),(i,j+1) of a vertex index grid ``idx``."""
+    faces = []
+    iu = nu if periodic_u else nu - 1
+    iv = nv if periodic_v else nv - 1
+    flips = rng.random((iu, iv)) < 0.5 if random_diagonals else np.zeros((iu, iv), bool)
+    for i in range(iu):
+        for j in range(iv):
+            a = idx[i, j]
+            b = idx[(i + 1) % nu, j]
+            c = idx[(i + 1) % nu, (j + 1) % nv]
+            d = idx[i, (j + 1) % nv]
+            if flips[i, j]:
+                faces += [(a, b, d), (b, c, d)]
+            else:
+                faces += [(a, b, c), (a, c, d)]
+    return np.array(faces, dtype=np.int64)
+
+
+def torus(R: float = 2.0, r: float = 0.7, nu: int = 48, nv: int = 16, perturb: float = 0.0,
+          random_diagonals: bool = False, seed: int = 0):
+    """Torus around the z axis, u around the axis (nu samples), v around the tube (nv samples).
+
+    ``perturb`` moves each vertex in parameter space by up to ``perturb`` grid steps in u and v
+    (uniformly at random), so vertices stay exactly on the torus (tangential perturbation);
+    ``random_diagonals`` picks the diagonal of every quad at random. chi = 0, outward normals.
+    """
+    rng = np.random.default_rng(seed)
+    u = 2 * np.pi * np.arange(nu) / nu
+    v = 2 * np.pi * np.arange(nv) / nv
+    U, W = np.meshgrid(u, v, indexing="ij")
+    if perturb:
+        U = U + perturb * (2 * np.pi / nu) * rng.uniform(-1, 1, U.shape)
+        W = W + perturb * (2 * np.pi / nv) * rng.uniform(-1, 1, W.shape)
+    X = np.stack([(R + r * np.cos(W)) * np.cos(U), (R + r * np.cos(W)) * np.sin(U), r * np.sin(W)],
+                 axis=-1).reshape(-1, 3)
+    idx = np.arange(nu * nv).reshape(nu, nv)
+    F = _grid_faces(nu, nv, idx, rng, random_diagonals, True, True)
+    return X, F
+
+
+def torus_frame(R: float, P):
+    """Analytic (u, v) angles and unit tangents e_u (around the z axis), e_v (around the tube) at
+    points P near a torus of centre radius R."""
+    P = np.asarray(P, float)
+    u = np.arctan2(P[:, 1], P[:, 0])
+    rho = np.hypot(P[:, 0], P[:, 1])
+    v = np.arctan2(P[:, 2], rho - R)
+    e_u = np.stack([-np.sin(u), np.cos(u), np.zeros_like(u)], 1)
+    e_v = np.stack([-np.sin(v) * np.cos(u), -np.sin(v) * np.sin(u), np.cos(v)], 1)
+    return u, v, e_u, e_v
+
+
+def cylinder(radius: float = 1.0, height: float = 2.0, nu: int = 32, nz: int = 16,
+             perturb: float = 0.0, random_diagonals: bool = False, seed: int = 0):
+    """Open cylinder around the z axis (two boundary loops, chi = 0), outward normals."""
+    rng = np.random.default_rng(seed)
+    u = 2 * np.pi * np.arange(nu) / nu
+    z = np.linspace(-height / 2, height / 2, nz)
+    U, Z = np.meshgrid(u, z, indexing="ij")
+    if perturb:
+        U = U + perturb * (2 * np.pi / nu) * rng.uniform(-1, 1, U.shape)
+        dz = height / (nz - 1)
+        inner = np.zeros_like(Z)
+        inner[:, 1:-1] = perturb * dz * rng.uniform(-1, 1, (nu, nz - 2))
+        Z = Z + inner
+    X = np.stack([radius * np.cos(U), radius * np.sin(U), Z], -1).reshape(-1, 3)
+    idx = np.arange(nu * nz).reshape(nu, nz)
+    F = _grid_faces(nu, nz, idx, rng, random_diagonals, True, False)
+    return X, F
+
+
+def grid(nx: int = 10, ny: int = 10, width: float = 1.0, height: float = 1.0,
+         random_diagonals: bool = False, seed: int = 0):
+    """Flat rectangle [0,width] x [0,height] in z = 0, nx x ny vertices, normals +z (chi = 1)."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0, width, nx)
+    y = np.linspace(0, height, ny)
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    P = np.stack([X, Y, np.zeros_like(X)], -1).reshape(-1, 3)
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    F = _grid_faces(nx, ny, idx, rng, random_diagonals, False, False)
+    return P, F
+
+
+def _stitch_rings(a_idx, a_ang, b_idx, b_ang):
+    """Triangulate the band between two concentric closed rings (inner a, outer b) by merging
+    their vertices by angle; faces are counter-clockwise seen from +z."""
+    faces = []
+    na, nb = len(a_idx), len(b_idx)
+    i = j = 0
+    while i < na or j < nb:
+        a0, a1 = a_idx[i % na], a_idx[(i + 1) % na]
+        b0, b1 = b_idx[j % nb], b_idx[(j + 1) % nb]
+        ta = a_ang[(i + 1) % na] + (2 * np.pi if i + 1 >= na else 0)
+        tb = b_ang[(j + 1) % nb] + (2 * np.pi if j + 1 >= nb else 0)
+        if j >= nb or (i < na and ta <= tb):
+            faces.append((a0, b0, a1))
+            i += 1
+        else:
+            faces.append((a0, b0, b1))
+            j += 1
+    return faces
+
+
+def disk(rings: int = 8, radius: float = 1.0, a: float = 1.0, b: float = 1.0):
+    """Flat disk (or ellipse with semi-axes a*radius, b*radius) of concentric rings, ring k with
+    6k vertices; normals +z, one boundary loop, chi = 1."""
+    P = [np.zeros(3)]
+    ring_idx, ring_ang = [np.array([0])], [np.array([0.0])]
+    for k in range(1, rings + 1):
+        ang = 2 * np.pi * np.arange(6 * k) / (6 * k)
+        rr = radius * k / rings
+        start = len(P)
+        for t in ang:
+            P.append(np.array([a * rr * np.cos(t), b * rr * np.sin(t), 0.0]))
+        ring_idx.append(np.arange(start, start + 6 * k))
+        ring_ang.append(ang)
+    faces = []
+    c = 0
+    for t in range(6):
+        faces.append((c, ring_idx[1][t], ring_idx[1][(t + 1) % 6]))
+    for k in range(1, rings):
+        faces += _stitch_rings(ring_idx[k], ring_ang[k], ring_idx[k + 1], ring_ang[k + 1])
+    return np.array(P), np.array(faces, dtype=np.int64)
+
+
+def mobius(nu: int = 40, nw: int = 6, width: float = 0.5, R: float = 1.0):
+    """Moebius strip (non-orientable, one boundary loop, chi = 0). The faces are oriented
+    consistently except across the closing seam, where orientation cannot agree."""
+    u = 2 * np.pi * np.arange(nu) / nu
+    w = np.linspace(-width, width, nw)
+    U, W = np.meshgrid(u, w, indexing="ij")
+    X = np.stack([(R + W * np.cos(U / 2)) * np.cos(U), (R + W * np.cos(U / 2)) * np.sin(U),
+                  W * np.sin(U / 2)], -1).reshape(-1, 3)
+    idx = np.arange(nu * nw).reshape(nu, nw)
+    faces = []
+    for i in range(nu):
+        for j in range(nw - 1):
+            a, d = idx[i, j], idx[i, j + 1]
+            if i + 1 < nu:
+                b, c = idx[i + 1, j], idx[i + 1, j + 1]
+            else:  # u = 2 pi is u = 0 with w -> -w
+                b, c = idx[0, nw - 1 - j], idx[0, nw - 2 - j]
+            faces += [(a, b, c), (a, c, d)]
+    return X, np.array(faces, dtype=np.int64)
+
+
+def bumpy_sphere(subdivisions: int = 3, amplitude: float = 0.15, seed: int = 0,
+                 jitter: float = 0.3):
+    """Icosphere with a smooth random radial bump field and random tangential vertex jitter
+    (``jitter`` in units of the local edge length) so the triangulation is irregular; chi = 2."""
+    rng = np.random.default_rng(seed)
+    V, F = icosphere(subdivisions)
+    h = mean_edge_length(V, F)
+    t = rng.normal(size=V.shape)
+    t -= (t * V).sum(1, keepdims=True) * V
+    V = V + jitter * h * t / np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12) \
+        * rng.uniform(0, 1, (len(V), 1))
+    V /= np.linalg.norm(V, axis=1, keepdims=True)
+    dirs = rng.normal(size=(4, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    bump = sum(np.exp(3.0 * (V @ d - 1.0)) * s for d, s in zip(dirs, [1, -1, 1, -1]))
+    return V * (1.0 + amplitude * bump)[:, None], F
+
+
+# ---------------------------------------------------------------------------------------------
+# Convex hulls and irregular triangulations
+# ---------------------------------------------------------------------------------------------
+
+
+def convex_hull(P, seed: int = 0):
+    """Incremental 3D convex hull of points in general position; returns outward triangles.
+    Points inside the hull are left unused (they do not occur for points on a sphere)."""
+    P = np.asarray(P, dtype=float)
+    rng = np.random.default_rng(seed)
+    n = len(P)
+    order = list(rng.permutation(n))
+    # initial tetrahedron from four affinely independent points
+    i0 = order[0]
+    i1 = max(order[1:], key=lambda k: np.linalg.norm(P[k] - P[i0]))
+    d01 = P[i1] - P[i0]
+    i2 = max(order, key=lambda k: np.linalg.norm(np.cross(d01, P[k] - P[i0])))
+    nrm = np.cross(d01, P[i2] - P[i0])
+    i3 = max(order, key=lambda k: abs(np.dot(nrm, P[k] - P[i0])))
+    if np.dot(nrm, P[i3] - P[i0]) > 0:
+        i1, i2 = i2, i1
+    cap = 2 * n + 8
+    Fa = np.zeros((cap, 3), np.int64)
+    N = np.zeros((cap, 3))
+    D = np.full(cap, np.inf)  # dead / unused slots are never visible
+    m = 0
+
+    def add(tris):
+        nonlocal m
+        tris = np.asarray(tris, np.int64).reshape(-1, 3)
+        a, b, c = P[tris[:, 0]], P[tris[:, 1]], P[tris[:, 2]]
+        nn = np.cross(b - a, c - a)
+        nn /= np.linalg.norm(nn, axis=1, keepdims=True)
+        k = len(tris)
+        if m + k > len(Fa):
+            raise RuntimeError("convex_hull: capacity exceeded")
+        Fa[m:m + k], N[m:m + k], D[m:m + k] = tris, nn, (nn * a).sum(1)
+        m += k
+
+    add([(i0, i1, i2), (i0, i3, i1), (i1, i3, i2), (i2, i3, i0)])
+    eps = 1e-12 * np.ptp(P, axis=0).max()
+    used = {i0, i1, i2, i3}
+    for k in order:
+        if k in used:
+            continue
+        vf = np.nonzero(N[:m] @ P[k] - D[:m] > eps)[0]
+        if len(vf) == 0:
+            continue
+        edges = set()
+        for f in vf:
+            a, b, c = Fa[f]
+            edges.update([(a, b), (b, c), (c, a)])
+        horizon = [(a, b, k) for (a, b) in edges if (b, a) not in edges]
+        D[vf] = np.inf  # remove visible faces
+        if m + len(horizon) > len(Fa):  # compact
+            alive = np.isfinite(D[:m])
+            cnt = int(alive.sum())
+            Fa[:cnt], N[:cnt], D[:cnt] = Fa[:m][alive], N[:m][alive], D[:m][alive]
+            D[cnt:] = np.inf
+            m = cnt
+        add(horizon)
+        used.add(k)
+    return Fa[:m][np.isfinite(D[:m])].copy()
+
+
+def blue_noise_sphere(n_points: int, seed: int = 0, density=None, min_dist_factor: float = 0.6,
+                      max_tries: int = 400000):
+    """Random points on the unit sphere with a minimum-distance (dart throwing) rule, using a grid
+    hash. ``density`` (a function of (k,3) points -> relative density in (0,1]) makes the spacing
+    non-uniform: the local minimum distance scales with density**-0.5."""
+    rng = np.random.default_rng(seed)
+    base = min_dist_factor * math.sqrt(4 * math.pi / n_points)
+    rmax = base / math.sqrt(0.05) if density is not None else base
+    cell = rmax
+    grid_ = {}
+    pts = []
+    tries = 0
+    while len(pts) < n_points and tries < max_tries:
+        c = rng.normal(size=(512, 3))
+        c /= np.linalg.norm(c, axis=1, keepdims=True)
+        dens = np.ones(len(c)) if density is None else np.maximum(density(c), 0.05)
+        tries += len(c)
+        keys = np.floor(c / cell).astype(np.int64)
+        for p, dd, key in zip(c, dens, keys):
+            r = base / math.sqrt(dd)
+            kx, ky, kz = key
+            ok = True
+            for dx in (-1, 0, 1):
+                for dy in (-1, 0, 1):
+                    for dz in (-1, 0, 1):
+                        for q in grid_.get((kx + dx, ky + dy, kz + dz), ()):
+                            if (p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2 < r * r:
+                                ok = False
+                                break
+                        if not ok:
+                            break
+                    if not ok:
+                        break
+                if not ok:
+                    break
+            if not ok:
+                continue
+            pts.append(p)
+            grid_.setdefault((kx, ky, kz), []).append(p)
+            if len(pts) >= n_points:
+                break
+    return np.asarray(pts)
+
+
+def irregular_ellipsoid(a: float = 1.6, b: float = 1.0, c: float = 0.6, n_points: int = 600,
+                        seed: int = 0, density=None, twist: float = 0.0):
+    """Closed ellipsoid x^2/a^2 + y^2/b^2 + z^2/c^2 = 1 with an irregular, asymmetric
+    triangulation: blue-noise random points on the unit sphere (optionally with a non-uniform
+    density), convex hull (= spherical Delaunay), then the affine map diag(a,b,c) (the hull of an
+    affine image is the affine image of the hull). ``twist`` (radians per unit of x) moves the
+    vertices along the unit sphere by a rotation about the x axis of angle twist * x before the
+    affine map, keeping the connectivity: the triangles get sheared in a chiral pattern (no mirror
+    symmetry), while every vertex stays exactly on the ellipsoid. The *shape* is symmetric under the
+    three coordinate reflections up to the sampling, the triangulation is not."""
+    S = blue_noise_sphere(n_points, seed=seed, density=density)
+    F = convex_hull(S, seed=seed)
+    used = np.unique(F)
+    remap = -np.ones(len(S), np.int64)
+    remap[used] = np.arange(len(used))
+    S = S[used]
+    if twist:
+        t = twist * S[:, 0]
+        S = np.stack([S[:, 0], S[:, 1] * np.cos(t) - S[:, 2] * np.sin(t),
+                      S[:, 1] * np.sin(t) + S[:, 2] * np.cos(t)], 1)
+    return S * np.array([a, b, c]), remap[F]
+
+
+def delaunay_2d(P2, seed: int = 0):
+    """Delaunay triangulation of 2D points (lower convex hull of the lifted points), CCW faces."""
+    P2 = np.asarray(P2, float)
+    L = np.column_stack([P2, (P2 ** 2).sum(1)])
+    F = convex_hull(L, seed=seed)
+    a, b, c = L[F[:, 0]], L[F[:, 1]], L[F[:, 2]]
+    nz = np.cross(b - a, c - a)[:, 2]
+    F = F[nz < 0]  # lower hull: outward normal points down
+    return F[:, [0, 2, 1]]
+
+
+def irregular_ellipse(a: float = 2.0, b: float = 1.0, n_boundary: int = 48,
+                      n_interior: int = 200, seed: int = 0):
+    """Flat ellipse (exactly symmetric boundary polygon) triangulated from random interior points
+    by Delaunay: symmetric shape, non-symmetric triangulation; normals +z, chi = 1."""
+    rng = np.random.default_rng(seed)
+    t = 2 * np.pi * np.arange(n_boundary) / n_boundary
+    B = np.stack([a * np.cos(t), b * np.sin(t)], 1)
+    h = 2 * np.pi * math.sqrt((a * a + b * b) / 2) / n_boundary
+    pts = []
+    while len(pts) < n_interior:
+        q = rng.uniform(-1, 1, 2) * [a, b]
+        if (q[0] / a) ** 2 + (q[1] / b) ** 2 > (1 - 0.5 * h / min(a, b)) ** 2:
+            continue
+        if pts and np.min(np.linalg.norm(np.asarray(pts) - q, axis=1)) < 0.5 * h:
+            continue
+        pts.append(q)
+    P2 = np.concatenate([B, np.asarray(pts)])
+    F = delaunay_2d(P2, seed=seed)
+    return np.column_stack([P2, np.zeros(len(P2))]), F
+
+
+# ---------------------------------------------------------------------------------------------
+# Mesh helpers
+# ---------------------------------------------------------------------------------------------
+
+
+def cyclic_rotate_faces(F, seed: int = 0):
+    """Rotate each face's vertex list cyclically by a random 0, 1 or 2 steps: the geometry,
+    orientation and face numbering are unchanged, only the native first-edge frame changes."""
+    F = np.asarray(F, dtype=np.int64)
+    k = np.random.default_rng(seed).integers(0, 3, len(F))
+    idx = (np.arange(3)[None, :] + k[:, None]) % 3
+    return np.take_along_axis(F, idx, axis=1)
+
+
+def face_centroids(V, F):
+    return np.asarray(V)[np.asarray(F)].mean(axis=1)
+
+
+def face_normals_areas(V, F):
+    V = np.asarray(V, float)
+    F = np.asarray(F)
+    c = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    ln = np.linalg.norm(c, axis=1)
+    return c / np.maximum(ln, 1e-300)[:, None], 0.5 * ln
+
+
+def mean_edge_length(V, F):
+    V = np.asarray(V, float)
+    F = np.asarray(F)
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    return float(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1).mean())
+
+
+def mesh_stats(V, F):
+    """Numpy topology summary: chi (over used vertices), #boundary edges, #non-manifold edges,
+    #edges whose two faces are inconsistently oriented, number of components."""
+    F = np.asarray(F, dtype=np.int64)
+    de = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    key = np.sort(de, axis=1)
+    uniq, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    used = np.unique(F)
+    chi = len(used) - len(uniq) + len(F)
+    # an edge shared by two faces is consistent iff it appears once in each direction
+    fwd = de[:, 0] < de[:, 1]
+    nfwd = np.bincount(inv, weights=fwd.astype(float), minlength=len(uniq))
+    inconsistent = int(np.sum((cnt == 2) & (nfwd != 1)))
+    # components via union-find over faces sharing an edge
+    parent = np.arange(len(F))
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    face_of = np.tile(np.arange(len(F)), 3)
+    order = np.argsort(inv, kind="stable")
+    s_inv = inv[order]
+    s_face = face_of[order]
+    for k in range(1, len(order)):
+        if s_inv[k] == s_inv[k - 1]:
+            ra, rb = find(s_face[k]), find(s_face[k - 1])
+            if ra != rb:
+                parent[ra] = rb
+    comps = len({find(x) for x in range(len(F))})
+    return {"chi": int(chi), "boundary_edges": int(np.sum(cnt == 1)),
+            "nonmanifold_edges": int(np.sum(cnt > 2)), "inconsistent_edges": inconsistent,
+            "components": comps, "vertices_used": int(len(used)), "edges": int(len(uniq))}
+
+
+def closest_faces(V, F, Q):
+    """Index of the face containing the closest point of the mesh to each query point (brute
+    force, exact point-triangle distance)."""
+    V = np.asarray(V, float)
+    F = np.asarray(F)
+    A, B, C = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
+    out = []
+    for q in np.atleast_2d(Q):
+        out.append(int(np.argmin(_point_triangle_dist2(q, A, B, C))))
+    return np.array(out, dtype=np.int64)
+
+
+def _point_triangle_dist2(p, A, B, C):
+    """Squared distance from p to triangles (A,B,C), vectorised (Ericson, Real-Time Collision
+    Detection, 5.1.5, via clamped barycentric projection onto the plane and the three edges)."""
+    def seg_d2(P0, P1):
+        d = P1 - P0
+        t = np.clip(((p - P0) * d).sum(1) / np.maximum((d * d).sum(1), 1e-300), 0, 1)
+        x = P0 + t[:, None] * d - p
+        return (x * x).sum(1)
+
+    n = np.cross(B - A, C - A)
+    nn = (n * n).sum(1)
+    t = ((p - A) * n).sum(1) / np.maximum(nn, 1e-300)
+    X = p - t[:, None] * n  # projection on the plane
+    # barycentric inside test
+    c0 = (np.cross(B - A, X - A) * n).sum(1)
+    c1 = (np.cross(C - B, X - B) * n).sum(1)
+    c2 = (np.cross(A - C, X - C) * n).sum(1)
+    inside = (c0 >= 0) & (c1 >= 0) & (c2 >= 0)
+    d_in = t * t * nn
+    d_edge = np.minimum(np.minimum(seg_d2(A, B), seg_d2(B, C)), seg_d2(C, A))
+    return np.where(inside, d_in, d_edge)
+
+
+def wrap_angle(a):
+    """Wrap to (-pi, pi]."""
+    a = np.asarray(a, float)
+    w = np.mod(a + np.pi, 2 * np.pi) - np.pi
+    return np.where(w == -np.pi, np.pi, w)
+
+
+# ---------------------------------------------------------------------------------------------
+# Independent reference of the paper's operators (dense/complex, small meshes only)
+# ---------------------------------------------------------------------------------------------
+
+
+class ReferenceOperators:
+    """Paper operators built from scratch with numpy for a clean, closed or bordered, manifold,
+    consistently oriented mesh (no cleaning). Frames: x = first edge of the face as given,
+    y = N x x. Complex Hermitian form: E(z) = sum_e w_e |r_e z_i - z_j|^2 = z^H S z."""
+
+    def __init__(self, V, F, n: int, weights: str = "geometric"):
+        self.V = V = np.asarray(V, float)
+        self.F = F = np.asarray(F, np.int64)
+        self.n = n
+        nF = len(F)
+        N, A = face_normals_areas(V, F)
+        self.normals, self.areas = N, A
+        x = V[F[:, 1]] - V[F[:, 0]]
+        x /= np.linalg.norm(x, axis=1, keepdims=True)
+        y = np.cross(N, x)
+        self.frames = np.stack([x, y], 1)
+        # dual edges: directed edge (a,b) in face i and (b,a) in face j
+        de = {}
+        for f in range(nF):
+            for k in range(3):
+                de[(int(F[f, k]), int(F[f, (k + 1) % 3]))] = f
+        E = []
+        for (a, b), i in de.items():
+            j = de.get((b, a))
+            if j is not None and a < b:
+                E.append((i, j, a, b))
+        self.dual = np.array(E, dtype=np.int64).reshape(-1, 4)
+        i, j, a, b = self.dual.T
+        e = V[b] - V[a]
+        ai = np.arctan2((e * y[i]).sum(1), (e * x[i]).sum(1))
+        aj = np.arctan2((e * y[j]).sum(1), (e * x[j]).sum(1))
+        self.r = np.exp(1j * n * (aj - ai))
+        if weights == "geometric":
+            self.w = 3 * (e * e).sum(1) / (A[i] + A[j])
+        else:
+            self.w = np.ones(len(E))
+
+    def S_dense(self):
+        nF = len(self.F)
+        S = np.zeros((nF, nF), complex)
+        i, j = self.dual[:, 0], self.dual[:, 1]
+        np.add.at(S, (i, i), self.w)
+        np.add.at(S, (j, j), self.w)
+        np.add.at(S, (i, j), -self.w * np.conj(self.r))
+        np.add.at(S, (j, i), -self.w * self.r)
+        return S
+
+    def energy(self, z):
+        i, j = self.dual[:, 0], self.dual[:, 1]
+        return float(np.sum(self.w * np.abs(self.r * z[i] - z[j]) ** 2))
+
+    def eigenvalues(self):
+        S = self.S_dense()
+        m = 1 / np.sqrt(self.areas)
+        return np.linalg.eigvalsh(m[:, None] * S * m[None, :])
+
+    def to_representation(self, vec3):
+        """3D vectors per face -> complex representation (|z| = |projected vector|)."""
+        x, y = self.frames[:, 0], self.frames[:, 1]
+        vx, vy = (vec3 * x).sum(1), (vec3 * y).sum(1)
+        return np.hypot(vx, vy) * np.exp(1j * self.n * np.arctan2(vy, vx))
+
+
+# ---------------------------------------------------------------------------------------------
+# Small numpy utilities shared by the tests
+# ---------------------------------------------------------------------------------------------
+
+
+def dense_from_coo(rows, cols, vals, size: int):
+    """Dense complex matrix from COO triplets (duplicates are summed)."""
+    A = np.zeros((size, size), complex)
+    np.add.at(A, (np.asarray(rows, np.int64), np.asarray(cols, np.int64)), np.asarray(vals))
+    return A
+
+
+def generalized_eigvalsh(A, mass):
+    """Eigenvalues of A z = lambda diag(mass) z for Hermitian A (dense, ascending)."""
+    m = 1.0 / np.sqrt(np.asarray(mass, float))
+    B = m[:, None] * A * m[None, :]
+    return np.linalg.eigvalsh(0.5 * (B + B.conj().T))
+
+
+def corner_angles(V, F):
+    """(F, 3) interior angles of each face at its three corners."""
+    V = np.asarray(V, float)
+    F = np.asarray(F)
+    out = np.zeros(F.shape)
+    for k in range(3):
+        a, b, c = V[F[:, k]], V[F[:, (k + 1) % 3]], V[F[:, (k + 2) % 3]]
+        u, w = b - a, c - a
+        out[:, k] = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), (u * w).sum(1))
+    return out
+
+
+def angle_defects(V, F):
+    """2 pi - sum of corner angles per vertex (meaningful for interior vertices)."""
+    F = np.asarray(F)
+    ang = corner_angles(V, F)
+    s = np.zeros(len(V))
+    np.add.at(s, F.reshape(-1), ang.reshape(-1))
+    return 2 * np.pi - s
+
+
+def vertex_valence(F, nv: int):
+    return np.bincount(np.asarray(F).reshape(-1), minlength=nv)
