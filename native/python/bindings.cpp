@@ -394,6 +394,11 @@ PYBIND11_MODULE(_native, m) {
     return py::make_tuple(from_std(v), from_std(x));
   }, py::arg("ops"), py::arg("z"));
 
+  m.def("singularity_numerator_range", [](std::shared_ptr<FieldOperators> ops, int vertex) {
+    return singularity_numerator_range(*ops, vertex);
+  }, py::arg("ops"), py::arg("vertex"),
+        "(lo, hi): the index numerators N (index N/n) the vertex's ring can carry; ValueError for other vertices");
+
   m.def("strength_to_lambda", [](std::shared_ptr<FieldOperators> ops, int order, double strength) {
     if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4");
     return strength_to_lambda(*ops, order, strength);
@@ -401,17 +406,33 @@ PYBIND11_MODULE(_native, m) {
 
   py::class_<ExactSolver>(m, "ExactSolver", "Exact n-field spline solver with cached factorization")
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
-                       const std::string& kind, double lambda_override, const py::object& progress) {
+                       const std::string& kind, double lambda_override, const py::object& progress,
+                       const py::object& frozen_faces, const py::object& frozen_values) {
              ComplexVector a;
              if (!alignment.is_none()) a = to_complex_vector(alignment.cast<ComplexArray>(), "alignment");
              const SplineKind k = parse_kind(kind);
              const ProgressCallback cb = wrap_progress(progress);
+             std::vector<std::pair<int, Complex>> frozen;
+             if (!frozen_faces.is_none()) {
+               const IndexArray faces = frozen_faces.cast<IndexArray>();
+               const ComplexArray values = frozen_values.cast<ComplexArray>();
+               if (faces.ndim() != 1 || values.ndim() != 1 || faces.shape(0) != values.shape(0))
+                 throw InputError("frozen_faces and frozen_values must be 1-D arrays of equal length");
+               for (py::ssize_t i = 0; i < faces.shape(0); ++i) {
+                 const long long f = faces.data()[i];
+                 if (f < 0 || f >= ops->mesh().num_faces())
+                   throw ConstraintError("frozen face " + std::to_string(f) + " is out of range");
+                 frozen.emplace_back(static_cast<int>(f), values.data()[i]);
+               }
+             }
              py::gil_scoped_release release;
-             return new ExactSolver(ops, order, strength, a, k, lambda_override, cb);
+             return new ExactSolver(ops, order, strength, a, k, lambda_override, cb, frozen);
            }),
            py::arg("ops"), py::arg("order") = 2, py::arg("strength") = 1.0, py::arg("alignment") = py::none(),
            py::arg("kind") = "direction", py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN(),
-           py::arg("progress") = py::none())
+           py::arg("progress") = py::none(), py::arg("frozen_faces") = py::none(),
+           py::arg("frozen_values") = py::none(),
+           "Factor V = E_order - lambda M over the faces that are not frozen (frozen faces keep their values)")
       .def("set_direction_constraint", &ExactSolver::set_direction_constraint, py::arg("face"), py::arg("d"))
       .def("set_vector_constraint", &ExactSolver::set_vector_constraint, py::arg("face"), py::arg("value"))
       .def("remove_constraint", &ExactSolver::remove_constraint, py::arg("face"))
@@ -430,5 +451,7 @@ PYBIND11_MODULE(_native, m) {
       .def_property_readonly("order", &ExactSolver::order)
       .def_property_readonly("sign_fixed_faces", &ExactSolver::sign_fixed_faces)
       .def_property_readonly("num_constraints", [](const ExactSolver& s) { return s.constraints().size(); })
-      .def_property_readonly("num_cached_columns", &ExactSolver::num_cached_columns);
+      .def_property_readonly("num_cached_columns", &ExactSolver::num_cached_columns)
+      .def_property_readonly("num_unknowns", &ExactSolver::num_unknowns)
+      .def("face_frozen", &ExactSolver::face_frozen, py::arg("face"));
 }

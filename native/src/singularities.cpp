@@ -49,6 +49,25 @@ std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const Co
   return out;
 }
 
+std::pair<int, int> singularity_numerator_range(const FieldOperators& ops, int vertex) {
+  const TriangleMesh& mesh = ops.mesh();
+  if (vertex < 0 || vertex >= mesh.num_vertices())
+    throw ConstraintError("singularity vertex " + std::to_string(vertex) + " is out of range (mesh has " +
+                          std::to_string(mesh.num_vertices()) + " vertices)");
+  const int k = static_cast<int>(mesh.vertex_ring_faces(vertex).size());
+  if (k == 0)
+    throw ConstraintError("vertex " + std::to_string(vertex) +
+                          " cannot carry a singularity: it is on a boundary, non-manifold, unused, or next to "
+                          "a degenerate face (only interior vertices have an index)");
+  // Same admissibility test as singularity_constraint_rows: |delta| < pi (1 - 1e-9).
+  const double nK = ops.n() * mesh.angle_defect(vertex), limit = k * M_PI * (1.0 - 1e-9);
+  int lo = static_cast<int>(std::ceil((nK - limit) / (2 * M_PI)));
+  int hi = static_cast<int>(std::floor((nK + limit) / (2 * M_PI)));
+  while (std::abs(2 * M_PI * lo - nK) >= limit) ++lo;
+  while (std::abs(2 * M_PI * hi - nK) >= limit) --hi;
+  return {lo, hi};
+}
+
 std::vector<ConstraintRow> singularity_constraint_rows(const FieldOperators& ops, int vertex, int numerator) {
   const TriangleMesh& mesh = ops.mesh();
   const int n = ops.n();

@@ -16,7 +16,15 @@ from .constraints import (
     load_constraints,
 )
 from .mesh import SUPPORTED_EXTENSIONS, Mesh
+from .session import DesignSession, Layer
 from .solve import ALIGN_CHOICES, WEIGHT_CHOICES, FieldResult, eigenvalues, smoothest_field, solve
+
+
+def __getattr__(name):
+    # The native exception class, without importing the compiled module before it is needed.
+    if name == "Cancelled":
+        return native().Cancelled
+    raise AttributeError(f"module 'nfield.core' has no attribute {name!r}")
 
 __all__ = [
     "Mesh",
@@ -27,6 +35,8 @@ __all__ = [
     "load_constraints",
     "constraint_from_dict",
     "solve",
+    "DesignSession",
+    "Layer",
     "FieldResult",
     "eigenvalues",
     "smoothest_field",

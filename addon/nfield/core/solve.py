@@ -39,7 +39,8 @@ class FieldResult:
     raw_solution : complex (T,) the solver's unnormalized solution w.
     directions : float (F, 3) first of the n unit directions per input face (polygon: its first triangle);
         zero rows on excluded faces.
-    singularities : list of (vertex, index) for every interior vertex with a non-zero index of u.
+    singularities : list of (vertex, index) for every interior vertex with a non-zero index of u (None when
+        solved with details=False).
     energy : E_order(u) = u^H E_order u of the *unit* (per-face normalized) field u, complex form, the
         paper's scale (see docs and conventions). For smoothest_field the order is 1 (Dirichlet energy).
     seconds : wall time of the computation (operators, solve, post-processing).
@@ -56,7 +57,7 @@ class FieldResult:
     representation: np.ndarray
     raw_solution: np.ndarray
     directions: np.ndarray
-    singularities: list[tuple[int, float]]
+    singularities: list[tuple[int, float]] | None
     energy: float
     seconds: float
     sign_fixed_faces: list[int]
@@ -83,7 +84,7 @@ class FieldResult:
             "weights": self.weights,
             "energy": self.energy,
             "lambda": self.lambda_,
-            "singularities": [{"vertex": int(v), "index": float(i)} for v, i in self.singularities],
+            "singularities": None if self.singularities is None else [{"vertex": int(v), "index": float(i)} for v, i in self.singularities],
             "sign_fixed_faces": [int(f) for f in self.sign_fixed_faces],
             "mesh_report": self.mesh_report,
             "seconds": self.seconds,
@@ -227,13 +228,17 @@ def _normalize(w: np.ndarray) -> np.ndarray:
     return u
 
 
-def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0) -> FieldResult:
+def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
+            details: bool = True) -> FieldResult:
+    """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
     nat = native()
     all_tri = np.asarray(ops.representation_to_directions(u), dtype=np.float64)  # (T, n, 3)
     all_faces = mesh.per_face(all_tri)
-    energy = float(ops.energy(u, order))
-    sv, si = nat.singularity_indices(ops, u)
-    sings = [(int(v), float(i)) for v, i in zip(np.asarray(sv).tolist(), np.asarray(si).tolist())]
+    energy = float(ops.energy(u, order)) if details else float("nan")
+    sings = None
+    if details:
+        sv, si = nat.singularity_indices(ops, u)
+        sings = [(int(v), float(i)) for v, i in zip(np.asarray(sv).tolist(), np.asarray(si).tolist())]
     tf = mesh.triangle_face
     fixed = sorted({int(tf[int(t)]) for t in sign_fixed})
     return FieldResult(

@@ -29,6 +29,10 @@ std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const Co
 /// Angle in (-pi, pi] of the product of transports around the ring of an interior vertex.
 double ring_holonomy(const FieldOperators& ops, int vertex);
 
+/// The numerators N an interior vertex can carry (index N/n): the integers with |2 pi N - n K_v| < k pi,
+/// as the closed range [first, second]. ConstraintError for vertices without an index (see below).
+std::pair<int, int> singularity_numerator_range(const FieldOperators& ops, int vertex);
+
 /// Rows imposing index numerator/n at vertex. Throws ConstraintError for a vertex out of range, a
 /// boundary / non-manifold vertex, or an index the ring cannot carry.
 std::vector<ConstraintRow> singularity_constraint_rows(const FieldOperators& ops, int vertex, int numerator);

@@ -1,0 +1,365 @@
+"""DesignSession: the editing engine behind the interactive tool and batch scripts (no bpy).
+
+A session holds one mesh, the design settings and the user's constraints, and keeps the native solver
+warm between edits:
+
+* Exact live mode. The native ExactSolver factors V = E_m - lambda M once per setting of (n, order,
+  alignment, strength, frozen faces) and caches V^-1 e_f for every constrained face. Re-aiming an existing
+  constraint (the drag in the UI) then costs no sparse solve (only the small Schur system, eqs. 13-14);
+  a constraint on a new face costs one complex back-substitution (both real columns at once); removing a
+  constraint costs nothing. Changing n, order, alignment or strength refactors (lazily, on the next solve).
+
+* Local editing (paper section 9) and the way back. ``begin_region(faces)`` freezes every other face at
+  its current value: the next solves factor only the region (the energy's stencil reaches the frozen
+  faces around it, which act as boundary values), and every frozen face is copied bit-identically into
+  the result. ``commit_region()`` turns the region's field into a *layer*: a set of frozen values kept in
+  later global solves, so the local edit survives global editing; ``release_layer(i)`` lets those faces
+  follow the global solve again. Local, global and local editing can so alternate freely, which the
+  paper's tool could not do.
+
+Constraints and singularities that lie on frozen faces are held by the frozen values themselves; they stay
+in the session (nothing is dropped) and act again as soon as their faces are free.
+"""
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from ._loader import native
+from .constraints import DirectionConstraint, SingularityConstraint, VectorConstraint
+from .mesh import Mesh
+from .solve import (
+    ALIGN_CHOICES,
+    FieldResult,
+    _check_mesh,
+    _check_n,
+    _check_order,
+    _check_strength,
+    _check_weights,
+    _face_vectors,
+    _normalize,
+    _result,
+    _singularity_numerators,
+)
+
+ProgressCallback = Callable[[float], Any]
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A committed local edit: faces (input numbering) whose field values are held fixed."""
+
+    faces: np.ndarray       # input faces of the region
+    triangles: np.ndarray   # their triangles
+    values: np.ndarray      # raw field values (complex, per triangle) held fixed
+
+
+class DesignSession:
+    """One mesh, its settings and its constraints, with a warm solver. See the module docstring."""
+
+    def __init__(self, mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength: float = 1.0,
+                 weights: str = "geometric", alignment_field: Any = None, mode: str = "exact",
+                 progress: ProgressCallback | None = None):
+        self.mesh = _check_mesh(mesh)
+        if mode != "exact":
+            raise ValueError(f"unknown solver mode {mode!r}: this version supports 'exact' (the spectral mode "
+                             f"is not available yet)")
+        self.mode = mode
+        self.progress = progress
+        self._settings: dict[str, Any] = {}
+        self._dirs: dict[int, np.ndarray] = {}
+        self._vecs: dict[int, np.ndarray] = {}
+        self._sings: dict[int, float] = {}
+        self._layers: list[Layer] = []
+        self._region: dict[str, Any] | None = None
+        self._ops = None
+        self._ops_key = None
+        self._alignment = None
+        self._alignment_key = None
+        self._solver = None
+        self._solver_key = None
+        self._in_solver: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
+        self.field: FieldResult | None = None
+        self.configure(n=n, order=order, align=align, strength=strength, weights=weights,
+                       alignment_field=alignment_field)
+
+    # ------------------------------------------------------------------ settings
+    def configure(self, **settings: Any) -> None:
+        """Change n, order, align, strength, weights or alignment_field; the solver refactors lazily."""
+        allowed = {"n", "order", "align", "strength", "weights", "alignment_field"}
+        unknown = set(settings) - allowed
+        if unknown:
+            raise ValueError(f"unknown setting(s) {sorted(unknown)} (expected some of {sorted(allowed)})")
+        new = dict(self._settings)
+        new.update(settings)
+        new["n"] = _check_n(new["n"])
+        new["order"] = _check_order(new["order"])
+        new["strength"] = _check_strength(new["strength"])
+        new["weights"] = _check_weights(new["weights"])
+        if new["align"] not in ALIGN_CHOICES:
+            raise ValueError(f"unknown align {new['align']!r} (expected one of {', '.join(ALIGN_CHOICES)})")
+        if new["align"] == "field":
+            af = new.get("alignment_field")
+            if af is None:
+                raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
+            af = np.asarray(af, dtype=np.float64)
+            if af.shape != (self.mesh.num_faces, 3) or not np.isfinite(af).all():
+                raise ValueError(f"alignment_field must be a finite array of shape ({self.mesh.num_faces}, 3)")
+            new["alignment_field"] = af
+        if self._settings and new["n"] != self._settings["n"]:
+            for v, index in self._sings.items():
+                if abs(index * new["n"] - round(index * new["n"])) > 1e-9:
+                    raise ValueError(f"the singularity at vertex {v} has index {index}, which is not a multiple "
+                                     f"of 1/{new['n']}: remove it before changing n to {new['n']}")
+        self._settings = new
+
+    @property
+    def settings(self) -> dict[str, Any]:
+        return {k: v for k, v in self._settings.items() if k != "alignment_field"}
+
+    # ------------------------------------------------------------------ constraints
+    def set_direction(self, face: int, direction) -> None:
+        """Add or re-aim a hard direction constraint (3D vector, projected onto the face)."""
+        c = DirectionConstraint(int(face), tuple(float(x) for x in np.asarray(direction, dtype=float).ravel()))
+        self._check_face_constraint(c, "direction", "direction constraint")
+        self._vecs.pop(c.face, None)
+        self._dirs[c.face] = np.asarray(c.direction, dtype=np.float64)
+
+    def set_vector(self, face: int, vector) -> None:
+        """Add or change a hard n-vector constraint (3D vector; its tangent length is the magnitude)."""
+        c = VectorConstraint(int(face), tuple(float(x) for x in np.asarray(vector, dtype=float).ravel()))
+        self._check_face_constraint(c, "vector", "vector constraint")
+        self._dirs.pop(c.face, None)
+        self._vecs[c.face] = np.asarray(c.vector, dtype=np.float64)
+
+    def remove(self, face: int) -> None:
+        face = int(face)
+        if face in self._dirs:
+            del self._dirs[face]
+        elif face in self._vecs:
+            del self._vecs[face]
+        else:
+            raise ValueError(f"face {face} has no constraint to remove")
+
+    def set_singularity(self, vertex: int, index: float) -> None:
+        """Pin a singularity of the given index (a multiple of 1/n) at an interior vertex."""
+        s = SingularityConstraint(int(vertex), float(index))
+        ((v, num),) = _singularity_numerators(self.mesh, [s], self._settings["n"])
+        lo, hi = self.index_range(v)
+        n = self._settings["n"]
+        if not lo <= num / n <= hi:
+            raise ValueError(f"vertex {v} cannot carry index {s.index:g}: with its ring of "
+                             f"{len(self.mesh.native.vertex_ring_faces(v))} faces the index must lie in "
+                             f"[{lo:g}, {hi:g}] (multiples of 1/{n})")
+        if self._region is not None and not self._ring_in_region(v):
+            raise ValueError(f"vertex {v} is outside the region being edited")
+        self._sings[v] = num / n
+
+    def remove_singularity(self, vertex: int) -> None:
+        if int(vertex) not in self._sings:
+            raise ValueError(f"vertex {vertex} has no singularity constraint to remove")
+        del self._sings[int(vertex)]
+
+    def index_range(self, vertex: int) -> tuple[float, float]:
+        """The smallest and largest index (multiples of 1/n) the vertex can carry; ValueError if none."""
+        lo, hi = native().singularity_numerator_range(self._operators(), int(vertex))
+        n = self._settings["n"]
+        return lo / n, hi / n
+
+    @property
+    def constraints(self) -> list:
+        out: list = [DirectionConstraint(f, tuple(d)) for f, d in sorted(self._dirs.items())]
+        out += [VectorConstraint(f, tuple(v)) for f, v in sorted(self._vecs.items())]
+        out += [SingularityConstraint(v, i) for v, i in sorted(self._sings.items())]
+        return out
+
+    # ------------------------------------------------------------------ local editing
+    def begin_region(self, faces) -> None:
+        """Restrict edits to `faces` (input numbering); everything else keeps its current value exactly."""
+        if self._region is not None:
+            raise ValueError("a region edit is already in progress: commit or cancel it first")
+        faces = np.unique(np.asarray(faces, dtype=np.int64).ravel())
+        if faces.size == 0:
+            raise ValueError("the region is empty: select at least one face")
+        if faces[0] < 0 or faces[-1] >= self.mesh.num_faces:
+            raise ValueError(f"region face {int(faces[0] if faces[0] < 0 else faces[-1])} is out of range "
+                             f"(mesh has {self.mesh.num_faces} faces)")
+        if self.field is None:
+            self.solve()
+        tris = np.flatnonzero(np.isin(self.mesh.triangle_face, faces))
+        self._region = {"faces": faces, "triangles": tris,
+                        "saved": (copy.deepcopy(self._dirs), copy.deepcopy(self._vecs), dict(self._sings)),
+                        "field": self.field, "frozen_values": np.asarray(self.field.raw_solution).copy()}
+
+    def commit_region(self) -> Layer:
+        """End the region edit; its field becomes a layer held fixed by later global solves."""
+        if self._region is None:
+            raise ValueError("no region edit in progress")
+        if self.field is None or self.field is self._region["field"]:
+            self.solve()
+        tris = self._region["triangles"]
+        active = np.asarray(self.mesh.native.face_active, dtype=bool)
+        tris = tris[active[tris]]
+        layer = Layer(faces=self._region["faces"], triangles=tris,
+                      values=np.asarray(self.field.raw_solution)[tris].copy())
+        self._layers.append(layer)
+        self._region = None
+        return layer
+
+    def cancel_region(self) -> None:
+        """End the region edit and restore the constraints and field from before begin_region."""
+        if self._region is None:
+            raise ValueError("no region edit in progress")
+        self._dirs, self._vecs, self._sings = self._region["saved"]
+        self.field = self._region["field"]
+        self._region = None
+
+    @property
+    def in_region(self) -> bool:
+        return self._region is not None
+
+    @property
+    def layers(self) -> list[Layer]:
+        return list(self._layers)
+
+    def release_layer(self, i: int) -> None:
+        if self._region is not None:
+            raise ValueError("finish the region edit before releasing a layer")
+        if not 0 <= i < len(self._layers):
+            raise ValueError(f"layer {i} does not exist (there are {len(self._layers)})")
+        del self._layers[i]
+
+    # ------------------------------------------------------------------ solving
+    def solve(self, details: bool = True) -> FieldResult:
+        """Solve with the current settings and constraints; returns (and keeps in .field) a FieldResult.
+
+        details=False is for live dragging: it skips the energy (NaN) and the singularity search (None),
+        which cost more than the solve itself on large meshes."""
+        t0 = time.perf_counter()
+        s = self._settings
+        ops = self._operators()
+        frozen_tris, frozen_values, frozen_key = self._frozen()
+        frozen_set = set(frozen_tris.tolist())
+        dirs = {f: d for f, d in self._dirs.items() if not self._face_frozen(f, frozen_set)}
+        vecs = {f: v for f, v in self._vecs.items() if not self._face_frozen(f, frozen_set)}
+        sings = {v: i for v, i in self._sings.items()
+                 if not any(t in frozen_set for t in self.mesh.native.vertex_ring_faces(v))}
+        kind = "vector" if vecs and not dirs else "direction"
+        key = (id(ops), s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
+        if self._solver is None or key != self._solver_key:
+            nat = native()
+            solver = nat.ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
+                                     progress=self.progress,
+                                     frozen_faces=frozen_tris if frozen_tris.size else None,
+                                     frozen_values=frozen_values if frozen_tris.size else None)
+            # Only replace the old solver once the new one exists: a failed or cancelled factorization
+            # leaves the session as it was.
+            self._solver, self._solver_key = solver, key
+            self._in_solver = {"dir": {}, "vec": {}, "sing": {}}
+        try:
+            self._sync(ops, dirs, vecs, sings)
+        except Exception:
+            self._solver = self._solver_key = None  # its constraint state is unknown now: rebuild next time
+            raise
+        w = np.asarray(self._solver.solve(), dtype=np.complex128)
+        u = _normalize(w)
+        self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
+                             strength=s["strength"], weights=s["weights"], lam=float(self._solver.lambda_),
+                             sign_fixed=list(self._solver.sign_fixed_faces), t0=t0, details=details)
+        return self.field
+
+    # ------------------------------------------------------------------ internals
+    def _check_face_constraint(self, c, attr: str, label: str) -> None:
+        _face_vectors(self.mesh, [c], attr, label)  # range, excluded, zero, normal-parallel
+        if self._region is not None and c.face not in set(self._region["faces"].tolist()):
+            raise ValueError(f"face {c.face} is outside the region being edited")
+
+    def _ring_in_region(self, v: int) -> bool:
+        region = set(self._region["triangles"].tolist())
+        return all(t in region for t in self.mesh.native.vertex_ring_faces(v))
+
+    def _face_frozen(self, face: int, frozen_set: set) -> bool:
+        return int(self.mesh.face_triangle(face)) in frozen_set
+
+    def _frozen(self):
+        """(triangles, values, key) of the faces held fixed in the next solve."""
+        if self._region is not None:
+            active = np.asarray(self.mesh.native.face_active, dtype=bool)
+            free = np.zeros(self.mesh.num_triangles, dtype=bool)
+            free[self._region["triangles"]] = True
+            tris = np.flatnonzero(active & ~free)
+            return tris, self._region["frozen_values"][tris], ("region", id(self._region))
+        if not self._layers:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.complex128), ()
+        tris = np.concatenate([layer.triangles for layer in self._layers])
+        values = np.concatenate([layer.values for layer in self._layers])
+        # A later layer overrides an earlier one on shared faces.
+        _, last = np.unique(tris[::-1], return_index=True)
+        keep = len(tris) - 1 - last
+        return tris[keep], values[keep], tuple(id(layer) for layer in self._layers)
+
+    def _operators(self):
+        key = (self._settings["n"], self._settings["weights"])
+        if self._ops_key != key:
+            self._ops = native().FieldOperators(self.mesh.native, *key)
+            self._ops_key = key
+            self._alignment_key = None
+        return self._ops
+
+    def _alignment_version(self):
+        s = self._settings
+        af = s.get("alignment_field")
+        return (s["align"], None if af is None or s["align"] != "field" else af.tobytes().__hash__())
+
+    def _alignment_field(self, ops):
+        key = (id(ops), self._alignment_version())
+        if self._alignment_key != key:
+            s = self._settings
+            nat = native()
+            if s["align"] in ("curvature-max", "curvature-min"):
+                self._alignment = np.asarray(nat.alignment_field(ops, s["align"]), dtype=np.complex128)
+            elif s["align"] == "field":
+                per_tri = s["alignment_field"][self.mesh.triangle_face]
+                idx = np.flatnonzero(np.asarray(self.mesh.native.face_active, dtype=bool))
+                self._alignment = np.zeros(self.mesh.num_triangles, dtype=np.complex128)
+                self._alignment[idx] = np.asarray(ops.tangent_to_representation(idx, np.ascontiguousarray(per_tri[idx])))
+            else:
+                self._alignment = None
+            self._alignment_key = key
+        return self._alignment
+
+    def _sync(self, ops, dirs: dict, vecs: dict, sings: dict) -> None:
+        """Bring the native solver's constraints to the wanted state with the fewest calls."""
+        want: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
+        for kind, items in (("dir", dirs), ("vec", vecs)):
+            if items:
+                faces = list(items)
+                tris = np.array([self.mesh.face_triangle(f) for f in faces], dtype=np.int64)
+                z = np.asarray(ops.tangent_to_representation(tris, np.array([items[f] for f in faces])))
+                for t, zz in zip(tris.tolist(), z):
+                    want[kind][t] = complex(zz / abs(zz)) if kind == "dir" else complex(zz)
+        n = self._settings["n"]
+        for v, index in sings.items():
+            want["sing"][v] = int(round(index * n))
+        have = self._in_solver
+        solver = self._solver
+        for t in set(have["dir"]) | set(have["vec"]):
+            if t not in want["dir"] and t not in want["vec"]:
+                solver.remove_constraint(t)
+        for v in have["sing"]:
+            if v not in want["sing"]:
+                solver.remove_singularity(v)
+        for t, z in want["dir"].items():
+            if have["dir"].get(t) != z:
+                solver.set_direction_constraint(t, z)
+        for t, z in want["vec"].items():
+            if have["vec"].get(t) != z:
+                solver.set_vector_constraint(t, z)
+        for v, num in want["sing"].items():
+            if have["sing"].get(v) != num:
+                solver.set_singularity(v, num)
+        self._in_solver = want
