@@ -387,9 +387,101 @@ def cmd_bench(bench_args: list[str]) -> int:
     return run([VENV_PY, script, *bench_args], env=addon_env(), check=False).returncode
 
 
-def cmd_package(_args) -> int:
-    say("package: not implemented yet (issue 4)")
-    return 1
+# Libraries every Linux system (and Blender) provides: never bundled (manylinux policy).
+PACKAGE_SYSTEM_LIBS = ("linux-vdso", "ld-linux", "libc.so", "libm.so", "libdl.so", "libpthread.so", "librt.so",
+                       "libstdc++.so", "libgcc_s.so", "libutil.so")
+# Never packaged: generated, caches, development-only files.
+PACKAGE_EXCLUDE_DIRS = {"__pycache__", "libs"}
+PACKAGE_EXCLUDE_SUFFIXES = (".pyc", ".pyo", ".tmp")
+
+
+def package_version() -> str:
+    """__version__ of addon/nfield/__init__.py, checked against bl_info and blender_manifest.toml."""
+    import ast
+
+    tree = ast.parse((PACKAGE_DIR / "__init__.py").read_text())
+    version = bl_version = None
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
+            if node.targets[0].id == "__version__":
+                version = ast.literal_eval(node.value)
+            elif node.targets[0].id == "bl_info":
+                bl_version = ast.literal_eval(node.value).get("version")
+    if version is None:
+        raise Failure("addon/nfield/__init__.py defines no __version__")
+    if bl_version is not None and ".".join(map(str, bl_version)) != version:
+        raise Failure(f"bl_info version {bl_version} does not match __version__ {version}")
+    manifest = PACKAGE_DIR / "blender_manifest.toml"
+    if not manifest.is_file():
+        raise Failure(f"{manifest.relative_to(ROOT)} is missing")
+    for line in manifest.read_text().splitlines():
+        key, _, value = line.partition("=")
+        if key.strip() == "version" and value.strip().strip('"') != version:
+            raise Failure(f"blender_manifest.toml version {value.strip()} does not match __version__ {version}")
+    return version
+
+
+def bundled_libraries(module: Path) -> list[tuple[str, Path]]:
+    """(soname, real file) of every shared library `module` needs that is not a system library (from ldd)."""
+    out = run(["ldd", module], capture=True, quiet=True).stdout
+    libs = []
+    for line in out.splitlines():
+        parts = line.strip().split()
+        if len(parts) >= 3 and parts[1] == "=>":
+            name, path = parts[0], parts[2]
+            if path == "not":
+                raise Failure(f"{module.name} needs {name}, which is not installed (ldd: not found)")
+            if not name.startswith(PACKAGE_SYSTEM_LIBS):
+                libs.append((name, Path(path).resolve()))
+    return libs
+
+
+def check_rpath(module: Path) -> None:
+    out = run(["readelf", "-d", module], capture=True, quiet=True).stdout
+    if "(RPATH)" not in out or "$ORIGIN/libs" not in out:
+        raise Failure(f"{module} has no DT_RPATH $ORIGIN/libs (CMakeLists.txt sets it; reconfigure the build)")
+
+
+def cmd_package(args) -> int:
+    """dist/nfield-<version>-linux-x64.zip: nfield/ (package, compiled module, bundled libs/, manifest)."""
+    import fcntl
+
+    version = package_version()
+    dist = ROOT / "dist"
+    dist.mkdir(exist_ok=True)
+    # Serialize concurrent `package` runs (e.g. two test sessions): two ninja processes in one build
+    # directory corrupt its logs and force full rebuilds.
+    with open(dist / ".package.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return _package_locked(args, version, dist)
+
+
+def _package_locked(args, version: str, dist: Path) -> int:
+    import zipfile
+
+    module = build(getattr(args, "python", None))
+    check_rpath(module)
+    libs = bundled_libraries(module)
+    target = dist / f"nfield-{version}-linux-x64.zip"
+    tmp = target.with_name(target.name + ".tmp")
+    count = 0
+    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(PACKAGE_DIR.rglob("*")):
+            rel = path.relative_to(PACKAGE_DIR)
+            if path.is_dir() or any(p in PACKAGE_EXCLUDE_DIRS for p in rel.parts[:-1]):
+                continue
+            if path.name.endswith(PACKAGE_EXCLUDE_SUFFIXES) or path.name.startswith("_native"):
+                continue  # compiled modules: only the one just built goes in (below)
+            zf.write(path, f"nfield/{rel.as_posix()}")
+            count += 1
+        zf.write(module, f"nfield/{module.name}")
+        for soname, real in libs:
+            zf.write(real, f"nfield/libs/{soname}")
+    os.replace(tmp, target)
+    size = target.stat().st_size / 1e6
+    say(f"packaged {target.relative_to(ROOT)} ({size:.1f} MB): {count} files, {module.name}, "
+        f"{len(libs)} bundled libraries ({', '.join(s for s, _ in libs)})")
+    return 0
 
 
 # ---------------------------------------------------------------------------------------- main
@@ -407,7 +499,9 @@ def make_parser() -> argparse.ArgumentParser:
     sub.add_parser("test", help="setup + build + pytest (extra arguments go to pytest)")
     sub.add_parser("demo", help="setup + build + run the main CLI job")
     sub.add_parser("bench", help="setup + build + bench/run.py (extra arguments go to it)")
-    sub.add_parser("package", help="build the Blender add-on zip (not implemented yet)")
+    pk = sub.add_parser("package", help="build the module and write dist/nfield-<version>-linux-x64.zip")
+    pk.add_argument("--python", metavar="PATH",
+                    help="build the module for this interpreter (default: .venv/bin/python)")
     return parser
 
 

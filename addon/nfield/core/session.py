@@ -226,6 +226,28 @@ class DesignSession:
     def layers(self) -> list[Layer]:
         return list(self._layers)
 
+    def restore_layer(self, faces, vectors) -> Layer:
+        """Re-create a committed layer from stored data (after a reload or undo): `faces` (input numbering)
+        and one 3D vector per face whose direction is the field's first direction and whose length is the
+        raw field magnitude. Polygons get the same vector on each of their triangles (projected)."""
+        faces = np.asarray(faces, dtype=np.int64).ravel()
+        vectors = np.asarray(vectors, dtype=np.float64).reshape(-1, 3)
+        if faces.shape[0] != vectors.shape[0]:
+            raise ValueError(f"restore_layer needs one vector per face ({faces.shape[0]} faces, "
+                             f"{vectors.shape[0]} vectors)")
+        if faces.size and (faces.min() < 0 or faces.max() >= self.mesh.num_faces):
+            raise ValueError(f"layer face out of range (mesh has {self.mesh.num_faces} faces)")
+        if not np.isfinite(vectors).all():
+            raise ValueError("layer vectors must be finite")
+        per_face = dict(zip(faces.tolist(), range(len(faces))))
+        active = np.asarray(self.mesh.native.face_active, dtype=bool)
+        tris = np.flatnonzero(np.isin(self.mesh.triangle_face, faces) & active)
+        rows = np.array([per_face[int(f)] for f in self.mesh.triangle_face[tris]], dtype=np.int64)
+        values = np.asarray(self._operators().tangent_to_representation(tris, np.ascontiguousarray(vectors[rows])))
+        layer = Layer(faces=np.unique(faces), triangles=tris, values=values.astype(np.complex128))
+        self._layers.append(layer)
+        return layer
+
     def release_layer(self, i: int) -> None:
         if self._region is not None:
             raise ValueError("finish the region edit before releasing a layer")

@@ -1,0 +1,237 @@
+"""nfield's Blender data: per-object settings and the user's design, stored in the .blend.
+
+Everything lives on the **object** (``obj.nfield``, a :class:`NFieldSettings`), not on the mesh datablock:
+settings are per object (as the issue asks), and two objects sharing one mesh can carry different designs.
+All vectors are in **object space** (the base mesh, before modifiers), so a design follows the object's
+transform. Face indices are polygon indices of ``obj.data.polygons``; vertex indices are ``obj.data.vertices``.
+
+The user's design is stored as CollectionProperty items so that it survives save/reload and undo/redo:
+
+* ``constraints`` (:class:`NFieldConstraint`): face + direction + kind + ``stale`` flag (+ the face centroid
+  at placement time, used to remap the constraint when the topology changes),
+* ``singularities`` (:class:`NFieldSingularity`): vertex + index numerator (index = numerator / n),
+* ``region_faces`` + ``region_active``: the faces of the region being edited (section 9 of the paper),
+* ``layers`` (:class:`NFieldLayer`): committed regions = face list + the frozen field values.
+
+The computed field itself is not stored here (it is rebuilt on demand from the design by
+``nfield.blender.session_cache``, and written to mesh attributes by ``nfield.blender.attributes``).
+
+Names in this module are a stable interface (the overlay and the interactive tools read them).
+"""
+from __future__ import annotations
+
+import bpy
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+from bpy.types import PropertyGroup
+
+# ---------------------------------------------------------------------------------------------- enum items
+SYMMETRY_ITEMS = [
+    ("1", "1 (Vector)", "Vector field: one direction per face"),
+    ("2", "2 (Line)", "Line field: two opposite directions per face"),
+    ("3", "3", "3-direction field (120 degrees apart)"),
+    ("4", "4 (Cross)", "Cross field: four directions 90 degrees apart"),
+    ("6", "6", "6-direction field (60 degrees apart)"),
+]
+ENERGY_ITEMS = [
+    ("HARMONIC", "Harmonic", "Order 1 (Dirichlet) energy: smoothest, singularities attract"),
+    ("BIHARMONIC", "Biharmonic", "Order 2 energy: smooth spline-like interpolation (default)"),
+    ("TRIHARMONIC", "Triharmonic", "Order 3 energy: even smoother interpolation"),
+]
+#: energy enum -> the order m of the m-harmonic energy
+ENERGY_ORDER = {"HARMONIC": 1, "BIHARMONIC": 2, "TRIHARMONIC": 3}
+ORDER_ENERGY = {v: k for k, v in ENERGY_ORDER.items()}
+
+ALIGNMENT_ITEMS = [
+    ("NONE", "None", "No alignment term"),
+    ("CURVATURE_MAX", "Curvature Max", "Align to the principal direction of largest absolute curvature"),
+    ("CURVATURE_MIN", "Curvature Min", "Align to the principal direction of smallest absolute curvature"),
+    ("ATTRIBUTE", "Face Attribute", "Align to an existing face-domain FLOAT_VECTOR attribute"),
+]
+#: alignment enum -> nfield.core.solve's ``align`` argument
+ALIGNMENT_CORE = {"NONE": "none", "CURVATURE_MAX": "curvature-max", "CURVATURE_MIN": "curvature-min",
+                  "ATTRIBUTE": "field"}
+CORE_ALIGNMENT = {v: k for k, v in ALIGNMENT_CORE.items()}
+
+SOLVER_MODE_ITEMS = [
+    ("EXACT", "Exact", "Exact sparse solve (live editing re-uses one factorization)"),
+    ("SPECTRAL", "Spectral", "Solve in the span of the k lowest eigenfields (needs a precomputed basis)"),
+]
+CONSTRAINT_KIND_ITEMS = [
+    ("DIRECTION", "Direction", "Hard direction constraint: one of the n directions points along it"),
+    ("VECTOR", "Vector", "Hard n-vector constraint: direction and magnitude"),
+]
+
+
+# ---------------------------------------------------------------------------------------------- items
+class NFieldConstraint(PropertyGroup):
+    """A hard constraint on one face (object space)."""
+
+    face: IntProperty(name="Face", description="Polygon index of the constrained face", min=0)
+    direction: FloatVectorProperty(
+        name="Direction", size=3, subtype="XYZ",
+        description="Constraint direction in object space (projected onto the face's tangent plane)")
+    kind: EnumProperty(name="Kind", items=CONSTRAINT_KIND_ITEMS, default="DIRECTION")
+    stale: BoolProperty(
+        name="Stale", default=False,
+        description="The face this constraint was placed on no longer exists; the constraint is kept but "
+                    "ignored by the solver until it is re-placed or removed")
+    centroid: FloatVectorProperty(
+        name="Face Centroid", size=3, subtype="XYZ",
+        description="Object-space centroid of the face when the constraint was placed (used to remap it "
+                    "after topology changes)")
+
+
+class NFieldSingularity(PropertyGroup):
+    """A prescribed singularity at a vertex: index = numerator / n."""
+
+    vertex: IntProperty(name="Vertex", min=0)
+    numerator: IntProperty(name="Index Numerator", description="Singularity index times n (index = numerator / n)")
+    stale: BoolProperty(name="Stale", default=False,
+                        description="The vertex no longer exists; kept but ignored until fixed or removed")
+    position: FloatVectorProperty(name="Position", size=3, subtype="XYZ",
+                                  description="Object-space vertex position when placed (for remapping)")
+
+
+class NFieldFaceItem(PropertyGroup):
+    """One face of a region or layer (with the frozen field value for layers)."""
+
+    face: IntProperty(name="Face", min=0)
+    value: FloatVectorProperty(
+        name="Value", size=3, subtype="XYZ",
+        description="Frozen field value: first direction in object space, length = |representation|")
+
+
+class NFieldLayer(PropertyGroup):
+    """A committed region: its faces keep their frozen field values in later global solves."""
+
+    name: StringProperty(name="Name", default="Layer")
+    faces: CollectionProperty(type=NFieldFaceItem)
+    stale: BoolProperty(name="Stale", default=False,
+                        description="Some faces of the layer no longer exist (topology changed)")
+
+
+# ---------------------------------------------------------------------------------------------- settings
+def _update_setting(self, context):
+    """Settings changed: the cached session reconfigures lazily (see session_cache); live update re-solves."""
+    from . import session_cache
+
+    session_cache.on_settings_changed(self.id_data, context)
+
+
+def _update_display(self, context):
+    """Display option changed: only redraw the viewport."""
+    screen = getattr(context, "screen", None)
+    if screen is not None:
+        for area in screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
+
+class NFieldSettings(PropertyGroup):
+    """Per-object nfield settings and design (``bpy.types.Object.nfield``)."""
+
+    # --- field settings
+    symmetry: EnumProperty(name="Symmetry", items=SYMMETRY_ITEMS, default="4",
+                           description="Symmetry n of the field", update=_update_setting)
+    energy: EnumProperty(name="Energy", items=ENERGY_ITEMS, default="BIHARMONIC", update=_update_setting)
+    alignment: EnumProperty(name="Alignment", items=ALIGNMENT_ITEMS, default="NONE", update=_update_setting)
+    alignment_attribute: StringProperty(
+        name="Alignment Attribute", default="",
+        description="Face-domain FLOAT_VECTOR attribute to align to (Alignment = Face Attribute)",
+        update=_update_setting)
+    strength: FloatProperty(name="Strength", default=1.0, min=1e-4, soft_max=100.0,
+                            description="Alignment strength (weight of the alignment term; used when Alignment is not None)", update=_update_setting)
+    solver_mode: EnumProperty(name="Solver", items=SOLVER_MODE_ITEMS, default="EXACT", update=_update_setting)
+    spectral_k: IntProperty(name="Eigenfields", default=500, min=2, soft_max=2000,
+                            description="Number k of eigenfields of the spectral basis", update=_update_setting)
+    live_update: BoolProperty(name="Live Update", default=True,
+                              description="Re-solve after every edit of constraints or settings")
+
+    # --- display (read by the overlay)
+    show_field: BoolProperty(name="Show Field", default=True, update=_update_display)
+    glyph_density: FloatProperty(name="Glyph Density", default=0.5, min=0.01, max=1.0, subtype="FACTOR",
+                                 description="Fraction of the glyph budget to draw (evenly spread)",
+                                 update=_update_display)
+    glyph_scale: FloatProperty(name="Glyph Scale", default=1.0, min=0.05, soft_max=4.0, update=_update_display)
+    show_constraints: BoolProperty(name="Show Constraints", default=True, update=_update_display)
+    show_singularities: BoolProperty(name="Show Singularities", default=True, update=_update_display)
+    show_streamlines: BoolProperty(name="Show Streamlines", default=False, update=_update_display)
+
+    # --- output attributes
+    write_attributes: BoolProperty(name="Write Attributes", default=True,
+                                   description="Write the output attributes after every solve")
+    direction_attribute: StringProperty(name="Direction", default="nfield_direction",
+                                        description="Face FLOAT_VECTOR attribute: first unit direction")
+    smooth_attribute: StringProperty(name="Smooth Direction", default="nfield_direction_smooth",
+                                     description="Point FLOAT_VECTOR attribute: n-symmetry-aware averaged direction")
+    singularity_attribute: StringProperty(name="Singularity Index", default="nfield_singularity",
+                                          description="Point FLOAT attribute: singularity index per vertex")
+
+    # --- the design
+    constraints: CollectionProperty(type=NFieldConstraint)
+    active_constraint_index: IntProperty(name="Active Constraint", default=0, min=0)
+    singularities: CollectionProperty(type=NFieldSingularity)
+    active_singularity_index: IntProperty(name="Active Singularity", default=0, min=0)
+    region_active: BoolProperty(name="Region Editing", default=False,
+                                description="A region edit is in progress (edits change only region_faces)")
+    region_faces: CollectionProperty(type=NFieldFaceItem)
+    layers: CollectionProperty(type=NFieldLayer)
+    active_layer_index: IntProperty(name="Active Layer", default=0, min=0)
+
+    # --- bookkeeping (written by the add-on, shown in the panel)
+    mesh_signature: StringProperty(
+        name="Mesh Signature", default="",
+        description="Signature of the mesh the design was last mapped to (detects topology changes)")
+    last_solve_seconds: FloatProperty(name="Last Solve (s)", default=0.0)
+    last_energy: FloatProperty(name="Energy", default=0.0)
+    last_message: StringProperty(name="Message", default="")
+    spectral_ready: BoolProperty(name="Spectral Basis Ready", default=False)
+
+    # --- convenience (no math)
+    @property
+    def n(self) -> int:
+        return int(self.symmetry)
+
+    @property
+    def order(self) -> int:
+        return ENERGY_ORDER[self.energy]
+
+    @property
+    def align(self) -> str:
+        return ALIGNMENT_CORE[self.alignment]
+
+    @property
+    def num_stale(self) -> int:
+        return (sum(1 for c in self.constraints if c.stale) + sum(1 for s in self.singularities if s.stale)
+                + sum(1 for l in self.layers if l.stale))
+
+
+classes = (
+    NFieldConstraint,
+    NFieldSingularity,
+    NFieldFaceItem,
+    NFieldLayer,
+    NFieldSettings,
+)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Object.nfield = PointerProperty(type=NFieldSettings)
+
+
+def unregister():
+    if hasattr(bpy.types.Object, "nfield"):
+        del bpy.types.Object.nfield
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
