@@ -151,9 +151,18 @@ def test_enabled_from_zip_with_bundled_libraries(nf, addon_zip):
     core = importlib.import_module(nf.__name__ + ".core")
     mod = core.native()
     assert Path(mod.__file__).parent == path
-    # the bundled CHOLMOD is the one in use (DT_RPATH $ORIGIN/libs)
-    maps = Path("/proc/self/maps").read_text()
-    cholmod = {line.split()[-1] for line in maps.splitlines() if "libcholmod" in line}
+    # The bundled CHOLMOD is the one the packaged module loads (DT_RPATH $ORIGIN/libs). Checked in a fresh
+    # process: in this one, earlier tests may already have loaded the system CHOLMOD through the
+    # development tree's module, and the dynamic loader then reuses it by soname.
+    probe = (
+        "import importlib.util, sys\n"
+        f"spec = importlib.util.spec_from_file_location('_native', {str(natives[0])!r})\n"
+        "mod = importlib.util.module_from_spec(spec); spec.loader.exec_module(mod)\n"
+        "maps = open('/proc/self/maps').read().splitlines()\n"
+        "print('\\n'.join(sorted({l.split()[-1] for l in maps if 'libcholmod' in l})))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    cholmod = set(out.split())
     assert cholmod and all(c.startswith(str(path / "libs")) for c in cholmod), cholmod
     for op in ("solve", "write_attributes", "constraint_add", "constraint_remove", "constraint_clear",
                "singularity_add", "singularity_remove", "region_begin", "region_commit", "region_cancel",

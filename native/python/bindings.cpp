@@ -18,6 +18,7 @@
 #include "nfield/singularities.hpp"
 #include "nfield/spectrum.hpp"
 #include "nfield/spline_solver.hpp"
+#include "nfield/streamlines.hpp"
 
 namespace py = pybind11;
 using namespace nfield;
@@ -134,9 +135,11 @@ SplineKind parse_kind(const std::string& kind) {
 PYBIND11_MODULE(_native, m) {
   m.doc() = "nfield native solver: n-symmetry direction field splines on triangle meshes";
 
-  py::register_exception<Cancelled>(m, "Cancelled", PyExc_RuntimeError);
+  py::register_local_exception<Cancelled>(m, "Cancelled", PyExc_RuntimeError);
+  // Module-local types and translators: two copies of this module (e.g. a development tree and an
+  // installed Blender extension) can then live in one interpreter without clashing.
   // Registered after Cancelled, so tried first; it leaves Cancelled to the translator above.
-  py::register_exception_translator([](std::exception_ptr p) {
+  py::register_local_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const InputError& e) {
@@ -150,7 +153,7 @@ PYBIND11_MODULE(_native, m) {
     }
   });
 
-  py::class_<TriangleMesh, std::shared_ptr<TriangleMesh>>(m, "Mesh", "Validated, cleaned triangle mesh")
+  py::class_<TriangleMesh, std::shared_ptr<TriangleMesh>>(m, "Mesh", py::module_local(), "Validated, cleaned triangle mesh")
       .def(py::init([](const DoubleArray& positions, const IndexArray& faces) {
              Positions P = to_positions(positions);
              Triangles T = to_triangles(faces);
@@ -230,7 +233,7 @@ PYBIND11_MODULE(_native, m) {
     return py::make_tuple(P, T, from_std(data.triangle_polygon), data.num_polygons);
   }, py::arg("path"), "Read OBJ/OFF/PLY: (positions, triangles, triangle_polygon, num_polygons)");
 
-  py::class_<FieldOperators, std::shared_ptr<FieldOperators>>(m, "FieldOperators",
+  py::class_<FieldOperators, std::shared_ptr<FieldOperators>>(m, "FieldOperators", py::module_local(),
                                                               "Frames, n-connection and energies of a mesh")
       .def(py::init([](std::shared_ptr<TriangleMesh> mesh, int n, const std::string& weights) {
              const EdgeWeights w = parse_edge_weights(weights);
@@ -404,7 +407,7 @@ PYBIND11_MODULE(_native, m) {
     return strength_to_lambda(*ops, order, strength);
   }, py::arg("ops"), py::arg("order"), py::arg("strength"));
 
-  py::class_<ExactSolver>(m, "ExactSolver", "Exact n-field spline solver with cached factorization")
+  py::class_<ExactSolver>(m, "ExactSolver", py::module_local(), "Exact n-field spline solver with cached factorization")
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
                        const std::string& kind, double lambda_override, const py::object& progress,
                        const py::object& frozen_faces, const py::object& frozen_values) {
@@ -454,4 +457,65 @@ PYBIND11_MODULE(_native, m) {
       .def_property_readonly("num_cached_columns", &ExactSolver::num_cached_columns)
       .def_property_readonly("num_unknowns", &ExactSolver::num_unknowns)
       .def("face_frozen", &ExactSolver::face_frozen, py::arg("face"));
+
+  // ---- BEGIN streamlines (hatching strokes; native/src/streamlines.cpp) ----
+  m.def("trace_streamlines", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& z, double separation,
+                                int family, bool cross_hatch, double max_length, double min_length,
+                                unsigned long long seed, const py::object& density, bool density_per_vertex,
+                                double test_ratio, double step_ratio, double max_turn, bool stop_at_singularities,
+                                double min_density, long long max_total_points) {
+    const ComplexVector field = to_complex_vector(z, "field");
+    StreamlineParams p;
+    p.separation = separation;
+    p.family = family;
+    p.cross_hatch = cross_hatch;
+    p.max_length = max_length;
+    p.min_length = min_length;
+    p.seed = seed;
+    p.test_ratio = test_ratio;
+    p.step_ratio = step_ratio;
+    p.seed_ratio = std::max(0.9, test_ratio);
+    p.max_turn = max_turn;
+    p.stop_at_singularities = stop_at_singularities;
+    p.min_density = min_density;
+    p.max_total_points = max_total_points;
+    if (!density.is_none()) {
+      const DoubleArray d = density.cast<DoubleArray>();
+      if (d.ndim() != 1) throw InputError("density must be a 1-D array");
+      p.density.assign(d.data(), d.data() + d.shape(0));
+      p.density_per_vertex = density_per_vertex;
+    }
+    Streamlines r;
+    {
+      py::gil_scoped_release release;
+      r = trace_streamlines(*ops, field, p);
+    }
+    py::list points, faces;
+    std::vector<int> families;
+    std::vector<double> lengths;
+    for (const Stroke& s : r.strokes) {
+      points.append(from_vec3(s.points));
+      faces.append(from_std(s.faces));
+      families.push_back(s.family);
+      lengths.push_back(s.length);
+    }
+    py::dict stats;
+    stats["num_points"] = r.stats.num_points;
+    stats["num_strokes"] = r.stats.num_strokes;
+    stats["num_discarded"] = r.stats.num_discarded;
+    stats["num_candidates"] = r.stats.num_candidates;
+    stats["num_blocked_faces"] = r.stats.num_blocked_faces;
+    stats["num_singularities"] = r.stats.num_singularities;
+    stats["truncated"] = r.stats.truncated;
+    stats["coverage"] = r.stats.coverage;
+    return py::make_tuple(points, faces, from_std(families), from_std(lengths), stats);
+  }, py::arg("ops"), py::arg("z"), py::arg("separation"), py::arg("family") = 0, py::arg("cross_hatch") = false,
+        py::arg("max_length") = std::numeric_limits<double>::infinity(), py::arg("min_length") = 0.0,
+        py::arg("seed") = 0ULL, py::arg("density") = py::none(), py::arg("density_per_vertex") = true,
+        py::arg("test_ratio") = 0.5, py::arg("step_ratio") = 0.2, py::arg("max_turn") = M_PI / 4,
+        py::arg("stop_at_singularities") = true, py::arg("min_density") = 0.1,
+        py::arg("max_total_points") = 5000000LL,
+        "Evenly spaced streamlines of a per-face field (see streamlines.hpp): "
+        "(points list of (k,3), faces list of (k,), families, lengths, stats dict)");
+  // ---- END streamlines ----
 }

@@ -18,6 +18,7 @@ from .constraints import (
 from .mesh import SUPPORTED_EXTENSIONS, Mesh
 from .session import DesignSession, Layer
 from .solve import ALIGN_CHOICES, WEIGHT_CHOICES, FieldResult, eigenvalues, smoothest_field, solve
+from .streamlines import Strokes, trace_streamlines
 
 
 def __getattr__(name):
@@ -44,4 +45,6 @@ __all__ = [
     "WEIGHT_CHOICES",
     "native",
     "NativeModuleError",
+    "Strokes",
+    "trace_streamlines",
 ]

@@ -23,8 +23,9 @@ in the session (nothing is dropped) and act again as soon as their faces are fre
 from __future__ import annotations
 
 import copy
+import itertools
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -49,6 +50,14 @@ from .solve import (
 ProgressCallback = Callable[[float], Any]
 
 
+_tokens = itertools.count(1)
+
+
+def _token() -> int:
+    """A never-repeating key for cache invalidation (id() of freed objects gets reused)."""
+    return next(_tokens)
+
+
 @dataclass(frozen=True)
 class Layer:
     """A committed local edit: faces (input numbering) whose field values are held fixed."""
@@ -56,6 +65,7 @@ class Layer:
     faces: np.ndarray       # input faces of the region
     triangles: np.ndarray   # their triangles
     values: np.ndarray      # raw field values (complex, per triangle) held fixed
+    token: int = field(default_factory=_token, compare=False)
 
 
 class DesignSession:
@@ -78,6 +88,8 @@ class DesignSession:
         self._region: dict[str, Any] | None = None
         self._ops = None
         self._ops_key = None
+        self._ops_token = 0
+        self._dirty = True  # constraints changed since the last solve
         self._alignment = None
         self._alignment_key = None
         self._solver = None
@@ -116,6 +128,7 @@ class DesignSession:
                     raise ValueError(f"the singularity at vertex {v} has index {index}, which is not a multiple "
                                      f"of 1/{new['n']}: remove it before changing n to {new['n']}")
         self._settings = new
+        self._dirty = True
 
     @property
     def settings(self) -> dict[str, Any]:
@@ -128,6 +141,7 @@ class DesignSession:
         self._check_face_constraint(c, "direction", "direction constraint")
         self._vecs.pop(c.face, None)
         self._dirs[c.face] = np.asarray(c.direction, dtype=np.float64)
+        self._dirty = True
 
     def set_vector(self, face: int, vector) -> None:
         """Add or change a hard n-vector constraint (3D vector; its tangent length is the magnitude)."""
@@ -135,9 +149,11 @@ class DesignSession:
         self._check_face_constraint(c, "vector", "vector constraint")
         self._dirs.pop(c.face, None)
         self._vecs[c.face] = np.asarray(c.vector, dtype=np.float64)
+        self._dirty = True
 
     def remove(self, face: int) -> None:
         face = int(face)
+        self._dirty = True
         if face in self._dirs:
             del self._dirs[face]
         elif face in self._vecs:
@@ -158,11 +174,13 @@ class DesignSession:
         if self._region is not None and not self._ring_in_region(v):
             raise ValueError(f"vertex {v} is outside the region being edited")
         self._sings[v] = num / n
+        self._dirty = True
 
     def remove_singularity(self, vertex: int) -> None:
         if int(vertex) not in self._sings:
             raise ValueError(f"vertex {vertex} has no singularity constraint to remove")
         del self._sings[int(vertex)]
+        self._dirty = True
 
     def index_range(self, vertex: int) -> tuple[float, float]:
         """The smallest and largest index (multiples of 1/n) the vertex can carry; ValueError if none."""
@@ -191,15 +209,16 @@ class DesignSession:
         if self.field is None:
             self.solve()
         tris = np.flatnonzero(np.isin(self.mesh.triangle_face, faces))
-        self._region = {"faces": faces, "triangles": tris,
+        self._region = {"faces": faces, "triangles": tris, "token": _token(),
                         "saved": (copy.deepcopy(self._dirs), copy.deepcopy(self._vecs), dict(self._sings)),
+                        "dirty": self._dirty,
                         "field": self.field, "frozen_values": np.asarray(self.field.raw_solution).copy()}
 
     def commit_region(self) -> Layer:
         """End the region edit; its field becomes a layer held fixed by later global solves."""
         if self._region is None:
             raise ValueError("no region edit in progress")
-        if self.field is None or self.field is self._region["field"]:
+        if self.field is None or self.field is self._region["field"] or self._dirty:
             self.solve()
         tris = self._region["triangles"]
         active = np.asarray(self.mesh.native.face_active, dtype=bool)
@@ -216,6 +235,7 @@ class DesignSession:
             raise ValueError("no region edit in progress")
         self._dirs, self._vecs, self._sings = self._region["saved"]
         self.field = self._region["field"]
+        self._dirty = self._region["dirty"]
         self._region = None
 
     @property
@@ -271,7 +291,7 @@ class DesignSession:
         sings = {v: i for v, i in self._sings.items()
                  if not any(t in frozen_set for t in self.mesh.native.vertex_ring_faces(v))}
         kind = "vector" if vecs and not dirs else "direction"
-        key = (id(ops), s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
+        key = (self._ops_token, s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
         if self._solver is None or key != self._solver_key:
             nat = native()
             solver = nat.ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
@@ -289,6 +309,7 @@ class DesignSession:
             raise
         w = np.asarray(self._solver.solve(), dtype=np.complex128)
         u = _normalize(w)
+        self._dirty = False
         self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
                              strength=s["strength"], weights=s["weights"], lam=float(self._solver.lambda_),
                              sign_fixed=list(self._solver.sign_fixed_faces), t0=t0, details=details)
@@ -314,7 +335,7 @@ class DesignSession:
             free = np.zeros(self.mesh.num_triangles, dtype=bool)
             free[self._region["triangles"]] = True
             tris = np.flatnonzero(active & ~free)
-            return tris, self._region["frozen_values"][tris], ("region", id(self._region))
+            return tris, self._region["frozen_values"][tris], ("region", self._region["token"])
         if not self._layers:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.complex128), ()
         tris = np.concatenate([layer.triangles for layer in self._layers])
@@ -322,13 +343,14 @@ class DesignSession:
         # A later layer overrides an earlier one on shared faces.
         _, last = np.unique(tris[::-1], return_index=True)
         keep = len(tris) - 1 - last
-        return tris[keep], values[keep], tuple(id(layer) for layer in self._layers)
+        return tris[keep], values[keep], tuple(layer.token for layer in self._layers)
 
     def _operators(self):
         key = (self._settings["n"], self._settings["weights"])
         if self._ops_key != key:
             self._ops = native().FieldOperators(self.mesh.native, *key)
             self._ops_key = key
+            self._ops_token = _token()
             self._alignment_key = None
         return self._ops
 
@@ -338,7 +360,7 @@ class DesignSession:
         return (s["align"], None if af is None or s["align"] != "field" else af.tobytes().__hash__())
 
     def _alignment_field(self, ops):
-        key = (id(ops), self._alignment_version())
+        key = (self._ops_token, self._alignment_version())
         if self._alignment_key != key:
             s = self._settings
             nat = native()

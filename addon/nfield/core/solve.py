@@ -71,6 +71,8 @@ class FieldResult:
 
     def all_directions(self) -> np.ndarray:
         """float (F, n, 3): the n unit directions per input face (zeros on excluded faces)."""
+        if callable(self._all_directions):  # computed on first use (live solves skip it)
+            object.__setattr__(self, "_all_directions", self._all_directions())
         return self._all_directions
 
     def to_dict(self) -> dict:
@@ -228,12 +230,35 @@ def _normalize(w: np.ndarray) -> np.ndarray:
     return u
 
 
+_FRAMES: dict = {}
+
+
+def _frames(ops) -> np.ndarray:
+    """(T, 2, 3) face frames of ops, cached per operator object (they are immutable)."""
+    key = id(ops)
+    cached = _FRAMES.get(key)
+    if cached is None or cached[0] is not ops:
+        _FRAMES.clear()  # keep only the most recent operators alive
+        cached = _FRAMES[key] = (ops, np.asarray(ops.frames, dtype=np.float64))
+    return cached[1]
+
+
 def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
             details: bool = True) -> FieldResult:
     """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
     nat = native()
-    all_tri = np.asarray(ops.representation_to_directions(u), dtype=np.float64)  # (T, n, 3)
-    all_faces = mesh.per_face(all_tri)
+    if details:
+        all_tri = np.asarray(ops.representation_to_directions(u), dtype=np.float64)  # (T, n, 3)
+        all_faces = mesh.per_face(all_tri)
+        first = np.ascontiguousarray(all_faces[:, 0, :])
+    else:
+        # Live path: only the first direction, from the frames (the n-fold set on demand).
+        frames = _frames(ops)
+        angle = np.angle(u) / n
+        first_tri = np.cos(angle)[:, None] * frames[:, 0] + np.sin(angle)[:, None] * frames[:, 1]
+        first_tri[np.abs(u) == 0] = 0.0
+        first = np.ascontiguousarray(mesh.per_face(first_tri))
+        all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
     energy = float(ops.energy(u, order)) if details else float("nan")
     sings = None
     if details:
@@ -244,7 +269,7 @@ def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, s
     return FieldResult(
         n=n, order=order, align=align, strength=strength, weights=weights,
         representation=u, raw_solution=w,
-        directions=np.ascontiguousarray(all_faces[:, 0, :]),
+        directions=first,
         singularities=sings, energy=energy, seconds=time.perf_counter() - t0,
         sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, _all_directions=all_faces,
     )
