@@ -28,14 +28,9 @@ ADDON_DIR = ROOT / "addon"
 PACKAGE_DIR = ADDON_DIR / "nfield"
 BUILD_ROOT = ROOT / "build"
 
-# The main job that `demo` runs (from the repository root, with PYTHONPATH=addon, in .venv).
-DEMO_COMMAND = [
-    "-m", "nfield", "solve", "tests/data/rocker-arm.obj",
-    "--n", "4", "--order", "2", "--align", "curvature-max",
-    "--constraints", "examples/rocker_constraints.json",
-    "--singularities", "examples/rocker_singularities.json",
-    "--out", "out/rocker_field.npy", "--json",
-]
+# The main job that `demo` runs (from the repository root, with PYTHONPATH=addon, in .venv): headless PyPI
+# bpy designs a field on the rocker arm, renders out/demo_*.png with Cycles and saves out/demo.blend.
+DEMO_COMMAND = ["demo/demo.py", "--out", "out"]
 
 # Debian packages the project needs (build, tests, later Blender/Xvfb and sanitizer/fuzz work).
 APT_PACKAGES = [

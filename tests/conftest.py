@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import os
 import pytest
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
@@ -41,3 +42,17 @@ def mesh_path(name: str) -> Path:
 def data_dir() -> Path:
     """The directory holding the test meshes (tests/data/)."""
     return DATA_DIR
+
+
+def system_blender_env() -> dict:
+    """Environment for Debian's Blender (3.4, embedded system Python 3.11).
+
+    Its embedded interpreter finds its home through PATH: with pyenv's or the venv's bin first (as under
+    `build_addon.py`, started by pyenv's python3), it would load pyenv's standard library and no NumPy.
+    So drop those PATH entries and every variable that redirects Python."""
+    env = dict(os.environ)
+    for key in ("PYTHONHOME", "PYTHONPATH", "VIRTUAL_ENV", "PYENV_VERSION"):
+        env.pop(key, None)
+    keep = [p for p in env.get("PATH", "").split(os.pathsep) if p and ".pyenv" not in p and ".venv" not in p]
+    env["PATH"] = os.pathsep.join(keep or ["/usr/bin", "/bin"])
+    return env

@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import system_blender_env
+
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
 PACKAGE_SOURCES = [ROOT / "addon" / "nfield", ROOT / "native", ROOT / "CMakeLists.txt", ROOT / "build_addon.py"]
@@ -493,7 +495,7 @@ def test_mismatched_module_gives_message_not_traceback(addon_zip, tmp_path):
             if name.startswith("nfield/_native"):
                 name = "nfield/_native.cpython-313-x86_64-linux-gnu.so"
             dst.writestr(name, src.read(item.filename))
-    env = dict(os.environ)
+    env = dict(os.environ)  # runs the venv's Python (PyPI bpy), not Debian's Blender
     for k in ("SCRIPTS", "EXTENSIONS", "CONFIG", "DATAFILES"):
         env[f"BLENDER_USER_{k}"] = str(tmp_path / k.lower())
     env.pop("PYTHONPATH", None)
@@ -532,7 +534,7 @@ def test_legacy_install_in_blender_34(addon_zip, tmp_path):
     """The same zip installs as a legacy add-on (bl_info) in Debian's Blender 3.4.1 and solves."""
     script = tmp_path / "legacy.py"
     script.write_text(_LEGACY_SCRIPT)
-    env = dict(os.environ)
+    env = system_blender_env()
     env["BLENDER_USER_SCRIPTS"] = str(tmp_path / "scripts")
     env["BLENDER_USER_CONFIG"] = str(tmp_path / "config")
     env.pop("PYTHONPATH", None)

@@ -35,6 +35,8 @@ from pathlib import Path
 
 import pytest
 
+from conftest import system_blender_env
+
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "tests" / "blender_scripts" / "window_session.py"
 ARTIFACTS = ROOT / "tests" / "artifacts"
@@ -107,7 +109,7 @@ def test_constraint_drag_in_real_window(tmp_path):
         pytest.skip(reason)
     addon_zip = _addon_zip(tmp_path)
     display = _free_display()
-    env = dict(os.environ)
+    env = system_blender_env()
     env["DISPLAY"] = f":{display}"
     env["LIBGL_ALWAYS_SOFTWARE"] = "1"  # mesa llvmpipe
     for key in ("BLENDER_USER_CONFIG", "BLENDER_USER_SCRIPTS", "BLENDER_USER_DATAFILES"):

@@ -27,6 +27,8 @@ from .api import (  # noqa: F401  (public scripting API)
     add_constraint,
     add_singularity,
     begin_region,
+    build_anisotropic_material,
+    build_hatching,
     cancel_region,
     clear_constraints,
     clear_singularities,
@@ -44,7 +46,7 @@ from .api import (  # noqa: F401  (public scripting API)
 )
 
 #: modules registered in this order (optional ones may be missing in partial installs)
-_MODULES = ("properties", "operators", "panels")
+_MODULES = ("properties", "operators", "material", "hatching", "panels")
 _OPTIONAL_MODULES = ("overlay", "tools")
 _registered: list = []
 

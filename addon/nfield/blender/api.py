@@ -30,6 +30,7 @@ __all__ = [
     "NFieldError", "configure", "add_constraint", "remove_constraint", "clear_constraints", "add_singularity",
     "remove_singularity", "clear_singularities", "solve", "field", "write_attributes", "begin_region",
     "commit_region", "cancel_region", "release_layer", "precompute_spectral", "sync", "stale_items",
+    "build_anisotropic_material", "build_hatching",
 ]
 
 _SYMMETRIES = (1, 2, 3, 4, 6)
@@ -489,3 +490,28 @@ def precompute_spectral(obj, k: int | None = None, progress=None):
     except Exception:
         configure(obj, mode=previous[0], k=previous[1])  # a failed/cancelled basis leaves the settings as they were
         raise
+
+
+# ------------------------------------------------------------------------------------------ applications
+def build_anisotropic_material(obj, *, anisotropy: float | None = None, direction: str | None = None,
+                               source: str | None = None, material: str | None = None, roughness: float = 0.25,
+                               metallic: float = 1.0, base_color=(0.8, 0.8, 0.82, 1.0), write: bool = True):
+    """Create or update a material whose anisotropic reflection follows the field (Cycles; EEVEE ignores
+    anisotropy). anisotropy: 0..1; direction: "field" or "perpendicular" (n = 2, 4); source: "face" or
+    "point" attribute (None keeps the material's setting; new: 0.8, "field", "face"); material: an existing
+    material to update (default: the object's nfield material, created if needed). Returns the bpy
+    Material. See nfield.blender.material."""
+    from . import material as _material
+
+    return _material.build(obj, anisotropy=anisotropy, direction=direction, source=source, material=material,
+                           roughness=roughness, metallic=metallic, base_color=base_color, write=write)
+
+
+def build_hatching(obj, **kwargs):
+    """Trace hatching strokes along the field (nfield.core.trace_streamlines) and write them as a curves
+    object parented to `obj` (created or updated). Returns the curves object. Keyword arguments: see
+    nfield.blender.hatching.build (spacing, family, cross_hatch, seed, max_length, min_length, radius,
+    density, name, material)."""
+    from . import hatching as _hatching
+
+    return _hatching.build(obj, **kwargs)

@@ -185,6 +185,22 @@ class NFIELD_PT_output(_NFieldPanel, bpy.types.Panel):
         col.operator("nfield.write_attributes", icon="FILE_TICK")
 
 
+class NFIELD_PT_applications(_NFieldPanel, bpy.types.Panel):
+    bl_idname = "NFIELD_PT_applications"
+    bl_label = "Shading & Hatching"
+    bl_parent_id = "NFIELD_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        col = self.layout.column()
+        col.operator("nfield.material_anisotropic", icon="MATERIAL")
+        box = col.box()
+        box.label(text="Anisotropy renders in Cycles;", icon="INFO")
+        box.label(text="EEVEE ignores it.")
+        col.operator("nfield.hatching", icon="STROKE")
+        col.label(text="Options: the operator's redo panel")
+
+
 def _wrap(text: str, width: int) -> list[str]:
     words, lines, cur = text.split(), [], ""
     for w in words:
@@ -207,6 +223,7 @@ classes = (
     NFIELD_PT_region,
     NFIELD_PT_display,
     NFIELD_PT_output,
+    NFIELD_PT_applications,
 )
 
 
