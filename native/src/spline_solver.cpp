@@ -115,7 +115,7 @@ ComplexVector ExactSolver::apply_inverse(const ComplexVector& b) const {
   ComplexVector x = factor_.solve(b);
   // One step of iterative refinement, only where V is ill-conditioned enough for it to matter.
   const ComplexVector r = b - system_ * x;
-  if (r.norm() > 1e-13 * b.norm()) x += factor_.solve(r);
+  if (r.norm() > 1e-10 * b.norm()) x += factor_.solve(r);
   if (!x.allFinite()) throw SolverError("back-substitution produced non-finite values");
   return x;
 }
@@ -183,7 +183,7 @@ void ExactSolver::ensure_columns(const std::vector<int>& faces) {
   for (size_t j = 0; j < missing.size(); ++j) E(unknown_of_face_[missing[j]], j) = 1.0;
   Eigen::MatrixXcd G = factor_.solve(E);
   const Eigen::MatrixXcd residual = E - system_ * G;  // columns of E have unit norm
-  if (residual.cwiseAbs().maxCoeff() > 1e-13) G += factor_.solve(residual);  // iterative refinement
+  if (residual.cwiseAbs().maxCoeff() > 1e-10) G += factor_.solve(residual);  // iterative refinement
   if (!G.allFinite()) throw SolverError("back-substitution produced non-finite values");
   for (size_t j = 0; j < missing.size(); ++j) columns_[missing[j]] = G.col(j);
 }
