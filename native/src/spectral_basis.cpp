@@ -3,12 +3,19 @@
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <new>
 #include <random>
+#include <atomic>
+#include <memory>
+#include <thread>
+#include <exception>
+#include <cstdlib>
 
 #include "nfield/errors.hpp"
 
@@ -28,8 +35,32 @@ void zheevd_(const char* jobz, const char* uplo, const int* n, nfield::Complex* 
              const int* liwork, int* info);
 }
 
+// OpenBLAS thread control, weak: absent with other BLAS implementations.
+extern "C" {
+void openblas_set_num_threads(int) __attribute__((weak));
+int openblas_get_num_threads(void) __attribute__((weak));
+}
+
 namespace nfield {
 namespace {
+
+/// Single-threaded BLAS for the lifetime of the object (OpenBLAS only), for code that runs its own
+/// threads: OpenBLAS threads on top of them oversubscribe the cores (and spin), which costs far more
+/// than it gains on the thin matrix products of the Lanczos iteration.
+struct SingleThreadedBlas {
+  int saved = 0;
+  SingleThreadedBlas() {
+    if (openblas_get_num_threads != nullptr && openblas_set_num_threads != nullptr) {
+      saved = openblas_get_num_threads();
+      if (saved > 1) openblas_set_num_threads(1);
+    }
+  }
+  ~SingleThreadedBlas() {
+    if (saved > 1) openblas_set_num_threads(saved);
+  }
+  SingleThreadedBlas(const SingleThreadedBlas&) = delete;
+  SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
+};
 
 using Eigen::MatrixXcd;
 using Eigen::VectorXd;
@@ -86,19 +117,179 @@ RawEigenpairs dense_eigenpairs(const ComplexSparse& S, const VectorXd& mass, int
   return out;
 }
 
-/// Thick-restart block Lanczos (block Krylov-Schur) for the largest eigenvalues of
-/// T = D (S - sigma M)^-1 D, D = M^1/2, in the standard inner product (see the header).
-class BlockKrylovSchur {
+/// S - sigma M factored by CHOLMOD: supernodal LL^H (sigma below the spectrum) or simplicial LDL^H
+/// (any sigma; indefinite is fine, no pivoting). The LDL^H factor also gives the inertia: the number of
+/// negative pivots is the number of eigenvalues below sigma (Sylvester).
+class ShiftedFactor {
  public:
-  BlockKrylovSchur(const ComplexSparse& S, const VectorXd& mass, double sigma, int k, int block, int capacity,
-                   double tol, int max_restarts, const ProgressCallback& progress)
-      : N_(static_cast<int>(S.rows())), k_(k), b_(block), m_(capacity), tol_(tol), max_restarts_(max_restarts),
-        sigma_(sigma), d_(mass.cwiseSqrt()), progress_(progress) {
-    ComplexSparse A = S;
-    for (int i = 0; i < N_; ++i) A.coeffRef(i, i) -= sigma * mass[i];
-    factor_.compute(A);
-    if (factor_.info() != Eigen::Success)
-      throw SolverError("spectral basis: factorization of S - sigma M failed (matrix not positive definite)");
+  ShiftedFactor(const ComplexSparse& S, const VectorXd& mass, bool definite)
+      : A_(S), definite_(definite) {
+    A_.makeCompressed();
+    diag_.resize(A_.cols());
+    for (int j = 0; j < A_.outerSize(); ++j) {
+      diag_[j] = -1;
+      for (ComplexSparse::InnerIterator it(A_, j); it; ++it)
+        if (it.row() == j) diag_[j] = static_cast<int>(&it.valueRef() - A_.valuePtr());
+      if (diag_[j] < 0) throw SolverError("spectral basis: operator has a structurally zero diagonal entry");
+    }
+    base_diag_.resize(A_.cols());
+    for (int j = 0; j < A_.cols(); ++j) base_diag_[j] = A_.valuePtr()[diag_[j]];
+    mass_ = mass;
+    if (definite_)
+      llt_.analyzePattern(A_);
+    else
+      ldl_.analyzePattern(A_);
+  }
+
+  /// Factors S - sigma M. Returns false if the factorization broke down.
+  bool factor(double sigma) {
+    sigma_ = sigma;
+    for (Eigen::Index j = 0; j < A_.cols(); ++j) A_.valuePtr()[diag_[j]] = base_diag_[j] - sigma * mass_[j];
+    if (definite_) {
+      llt_.factorize(A_);
+      return llt_.info() == Eigen::Success;
+    }
+    ldl_.factorize(A_);
+    return ldl_.info() == Eigen::Success;
+  }
+  double sigma() const { return sigma_; }
+  void set_solve_threads(int threads) { solve_threads_ = threads; }
+
+  /// Number of eigenvalues below sigma (LDL^H only).
+  int negative_pivots() const { return ldl_.negative_pivots(); }
+
+  /// X = (S - sigma M)^-1 B. Not reentrant (uses internal buffers).
+  void solve_into(const MatrixXcd& B, MatrixXcd& X) const {
+    if (definite_)
+      X = llt_.solve(B);
+    else
+      ldl_solve(B, X);
+  }
+
+ private:
+  /// A^-1 B with the simplicial LDL^H factor, P A P^T = L D L^H. CHOLMOD solves one column at a time;
+  /// this reads L once per group of columns (row-major right-hand sides) and splits the columns over two
+  /// threads, which makes it several times faster for the blocks of the Lanczos iteration.
+  void ldl_solve(const MatrixXcd& B, MatrixXcd& X) const {
+    const cholmod_factor* L = ldl_.factor();
+    const int n = static_cast<int>(L->n), cols = static_cast<int>(B.cols());
+    const int* perm = static_cast<const int*>(L->Perm);
+    const int* Lp = static_cast<const int*>(L->p);
+    const int* Li = static_cast<const int*>(L->i);
+    const int* Lnz = static_cast<const int*>(L->nz);
+    const double* Lx = static_cast<const double*>(L->x);
+    X.resize(n, cols);
+    constexpr int kGroup = 8;
+    auto work = [&](int c0, int c1, std::vector<double>& Y) {
+      Y.resize(static_cast<std::size_t>(n) * 2 * kGroup);
+      for (int g0 = c0; g0 < c1; g0 += kGroup) {
+        const int r = std::min(kGroup, c1 - g0);
+        const std::ptrdiff_t s = 2 * r;  // doubles per row
+        for (int i = 0; i < n; ++i)
+          for (int c = 0; c < r; ++c) {
+            const Complex v = B(perm[i], g0 + c);
+            Y[i * s + 2 * c] = v.real();
+            Y[i * s + 2 * c + 1] = v.imag();
+          }
+        for (int j = 0; j < n; ++j) {  // L y = P b
+          const double* yj = &Y[j * s];
+          const int p0 = Lp[j], p1 = Lp[j] + Lnz[j];
+          for (int p = p0 + 1; p < p1; ++p) {
+            const double lr = Lx[2 * static_cast<std::ptrdiff_t>(p)], li = Lx[2 * static_cast<std::ptrdiff_t>(p) + 1];
+            double* yi = &Y[static_cast<std::ptrdiff_t>(Li[p]) * s];
+            for (int c = 0; c < 2 * r; c += 2) {
+              yi[c] -= lr * yj[c] - li * yj[c + 1];
+              yi[c + 1] -= lr * yj[c + 1] + li * yj[c];
+            }
+          }
+        }
+        for (int j = 0; j < n; ++j) {  // D
+          const double dinv = 1.0 / Lx[2 * static_cast<std::ptrdiff_t>(Lp[j])];
+          for (int c = 0; c < 2 * r; ++c) Y[j * s + c] *= dinv;
+        }
+        double acc[2 * kGroup];
+        for (int j = n - 1; j >= 0; --j) {  // L^H z = y
+          double* yj = &Y[j * s];
+          for (int c = 0; c < 2 * r; ++c) acc[c] = yj[c];
+          const int p0 = Lp[j], p1 = Lp[j] + Lnz[j];
+          for (int p = p0 + 1; p < p1; ++p) {
+            const double lr = Lx[2 * static_cast<std::ptrdiff_t>(p)], li = Lx[2 * static_cast<std::ptrdiff_t>(p) + 1];
+            const double* yi = &Y[static_cast<std::ptrdiff_t>(Li[p]) * s];
+            for (int c = 0; c < 2 * r; c += 2) {  // conj(l) * y_i
+              acc[c] -= lr * yi[c] + li * yi[c + 1];
+              acc[c + 1] -= lr * yi[c + 1] - li * yi[c];
+            }
+          }
+          for (int c = 0; c < 2 * r; ++c) yj[c] = acc[c];
+        }
+        for (int i = 0; i < n; ++i)
+          for (int c = 0; c < r; ++c) X(perm[i], g0 + c) = Complex(Y[i * s + 2 * c], Y[i * s + 2 * c + 1]);
+      }
+    };
+    const int threads = solve_threads_ > 1 && cols >= 2 * kGroup && std::thread::hardware_concurrency() > 1 ? 2 : 1;
+    if (threads == 1) {
+      work(0, cols, buffer_[0]);
+    } else {
+      const int half = ((cols / 2 + kGroup - 1) / kGroup) * kGroup;
+      std::exception_ptr error;
+      std::thread t([&] {
+        try {
+          work(half, cols, buffer_[1]);
+        } catch (...) {
+          error = std::current_exception();
+        }
+      });
+      work(0, half, buffer_[0]);
+      t.join();
+      if (error) std::rethrow_exception(error);
+    }
+  }
+
+  struct LDL : Eigen::CholmodSimplicialLDLT<ComplexSparse, Eigen::Lower> {
+    const cholmod_factor* factor() const { return this->m_cholmodFactor; }
+    int negative_pivots() const {
+      const cholmod_factor* L = this->m_cholmodFactor;
+      if (L == nullptr || L->is_super || L->is_ll) throw SolverError("spectral basis: no LDL factor for the inertia");
+      const int* p = static_cast<const int*>(L->p);
+      const double* x = static_cast<const double*>(L->x);  // complex interleaved; D on the column heads
+      int neg = 0;
+      for (std::size_t j = 0; j < L->n; ++j) neg += x[2 * static_cast<std::ptrdiff_t>(p[j])] < 0;
+      return neg;
+    }
+  };
+  ComplexSparse A_;
+  std::vector<int> diag_;
+  std::vector<Complex> base_diag_;
+  VectorXd mass_;
+  bool definite_;
+  double sigma_ = 0;
+  Eigen::CholmodSupernodalLLT<ComplexSparse, Eigen::Lower> llt_;
+  LDL ldl_;
+  mutable std::vector<double> buffer_[2];
+  int solve_threads_ = 2;
+};
+
+/// Thick-restart block Lanczos (block Krylov-Schur) for the eigenvalues of S z = lambda M z nearest to a
+/// shift sigma, through T = D (S - sigma M)^-1 D, D = M^1/2 (Hermitian, possibly indefinite; theta =
+/// 1/(lambda - sigma), largest |theta| first). Either all `count` eigenvalues in [lo, hi) are wanted
+/// (count known from the inertia; the iteration runs until exactly that many Ritz pairs in the interval
+/// have converged, which also catches eigenvalues missed in clusters), or (lo = -inf, hi = +inf) the
+/// `count` nearest ones.
+class SliceLanczos {
+ public:
+  SliceLanczos(const ShiftedFactor& factor, const VectorXd& d, double lo, double hi, int count, int block,
+               double tol, int max_restarts, std::function<void(double)> report, std::uint64_t seed)
+      : factor_(factor), N_(static_cast<int>(d.size())), b_(block), count_(count), tol_(tol),
+        max_restarts_(max_restarts), sigma_(factor.sigma()), lo_(lo), hi_(hi), d_(d), report_(std::move(report)),
+        rng_(seed) {
+    want_ = count_ + std::max(4, count_ / 10);
+    int capacity = want_ + std::max(want_, 4 * b_);
+    capacity = ((capacity + b_ - 1) / b_) * b_;
+    if (capacity + b_ > N_) capacity = ((N_ - b_) / b_) * b_;
+    m_ = capacity;
+    if (m_ < want_ + b_)
+      throw ParameterError("spectral basis: " + std::to_string(count_) + " eigenpairs is too many for " +
+                           std::to_string(N_) + " unknowns; choose a smaller k");
     try {
       V_.resize(N_, m_ + b_);
       H_.setZero(m_ + b_, m_);
@@ -109,51 +300,85 @@ class BlockKrylovSchur {
   }
 
   RawEigenpairs run() {
-    report(0.0);
-    // Start block: T applied to a deterministic random block (damps the high frequencies).
-    std::mt19937_64 rng(0x6e6669656c64ULL);
-    std::normal_distribution<double> normal;
-    MatrixXcd X(N_, b_);
-    for (Eigen::Index j = 0; j < X.cols(); ++j)
-      for (Eigen::Index i = 0; i < X.rows(); ++i) X(i, j) = Complex(normal(rng), normal(rng));
-    X = apply(X.data(), b_);
-    orthonormalize(X, 0, rng);
-    V_.middleCols(0, b_) = X;
-
-    int cur = 0;  // columns [0, cur) have their images in H; block [cur, cur + b) is expanded next
-    int nconv = 0;
+    RawEigenpairs out;
+    if (count_ <= 0) {
+      out.values.resize(0);
+      out.vectors.resize(N_, 0);
+      return out;
+    }
+    int cur = 0;
+    start_block(cur);
     VectorXd theta;
     MatrixXcd Y;
+    std::vector<int> chosen;
+    int stalled = 0, last_in = -1;
     for (int restart = 0;; ++restart) {
       const int cycle_start = cur;
       while (cur + b_ <= m_) {
-        MatrixXcd W = apply(V_.col(cur).data(), b_);
+        MatrixXcd& W = work_;
+        apply(V_.col(cur).data(), b_, W);
         const int j = cur + b_;
         MatrixXcd C = orthogonalize_against(W, j);
-        MatrixXcd R = orthonormalize(W, j, rng);
+        MatrixXcd R = orthonormalize(W, j);
         H_.block(0, cur, j, b_) = C;
         H_.block(j, cur, b_, b_) = R;
         V_.middleCols(j, b_) = W;
         cur = j;
         const double f = static_cast<double>(cur - cycle_start) / std::max(1, m_ - cycle_start);
-        report((nconv + f * 0.5 * (k_ - nconv)) / k_);
+        report_((last_in > 0 ? last_in : 0) / static_cast<double>(count_) * (1 - 0.5 * f) + 0.5 * f);
       }
-      // Rayleigh-Ritz on the projected matrix.
+      // Rayleigh-Ritz on the projected matrix, Ritz values by decreasing |theta| (nearest sigma first).
       MatrixXcd Hm = H_.topLeftCorner(cur, cur);
       Hm = (0.5 * (Hm + Hm.adjoint())).eval();
       VectorXd w;
       hermitian_eigen(Hm, w);
-      theta = w.reverse();
-      Y = Hm.rowwise().reverse();  // descending theta
+      std::vector<int> order(cur);
+      for (int i = 0; i < cur; ++i) order[i] = i;
+      std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return std::abs(w[a]) > std::abs(w[b]); });
+      theta.resize(cur);
+      Y.resize(cur, cur);
+      for (int i = 0; i < cur; ++i) {
+        theta[i] = w[order[i]];
+        Y.col(i) = Hm.col(order[i]);
+      }
       const MatrixXcd coupling = H_.block(cur, 0, b_, cur) * Y;  // b x cur
-      nconv = 0;
-      while (nconv < cur && coupling.col(nconv).norm() <= tol_ * theta[nconv]) ++nconv;
-      if (nconv >= k_) break;
+      std::vector<bool> conv(cur);
+      int nconv = 0;
+      for (int i = 0; i < cur; ++i) conv[i] = coupling.col(i).norm() <= tol_ * std::abs(theta[i]);
+      while (nconv < cur && conv[nconv]) ++nconv;
+      chosen.clear();
+      for (int i = 0; i < cur; ++i)
+        if (conv[i] && in_interval(theta[i])) chosen.push_back(i);
+      const bool bounded = std::isfinite(lo_) || std::isfinite(hi_);
+      const int have = bounded ? static_cast<int>(chosen.size()) : nconv;
+      if (have >= count_) {
+        if (!bounded) {
+          chosen.clear();
+          for (int i = 0; i < count_; ++i) chosen.push_back(i);
+        }
+        chosen.resize(count_);  // (more than count only for eigenvalues within rounding of lo / hi)
+        break;
+      }
       if (restart >= max_restarts_)
         throw SolverError("spectral basis: eigen solver did not converge in " + std::to_string(max_restarts_) +
-                          " restarts (" + std::to_string(nconv) + " of " + std::to_string(k_) + " converged)");
-      // Thick restart: keep the l best Ritz vectors and the residual block.
-      int keep = std::max(nconv + (cur - nconv) / 2, k_ + (cur - k_) / 3);
+                          " restarts (" + std::to_string(have) + " of " + std::to_string(count_) +
+                          " eigenpairs near " + std::to_string(sigma_) + ")");
+      stalled = have == last_in ? stalled + 1 : 0;
+      last_in = have;
+      ++restarts_;
+      if (stalled >= 3 && nconv >= want_) {
+        // Every wanted Ritz pair converged but the interval misses eigenvalues (a cluster the Krylov
+        // space has not seen): keep the converged pairs, restart from a fresh random block.
+        rotate(Y, cur, nconv);
+        H_.topLeftCorner(cur + b_, cur).setZero();
+        for (int i = 0; i < nconv; ++i) H_(i, i) = theta[i];
+        cur = nconv;
+        start_block(cur);
+        stalled = 0;
+        continue;
+      }
+      // Thick restart: keep the best Ritz vectors and the residual block.
+      int keep = std::max(nconv + (cur - nconv) / 2, want_ + (cur - want_) / 3);
       keep = std::min(keep, cur - b_);
       rotate(Y, cur, keep);
       V_.middleCols(keep, b_) = V_.middleCols(cur, b_);
@@ -161,20 +386,23 @@ class BlockKrylovSchur {
       for (int i = 0; i < keep; ++i) H_(i, i) = theta[i];
       H_.block(keep, 0, b_, keep) = coupling.leftCols(keep);
       cur = keep;
-      restarts_ = restart + 1;
     }
-    // Ritz vectors z = D^-1 V y, lambda = sigma + 1/theta.
-    RawEigenpairs out;
-    out.values.resize(k_);
-    for (int i = 0; i < k_; ++i) out.values[i] = sigma_ + 1.0 / theta[i];
+    // Ritz vectors z = D^-1 V y, lambda = sigma + 1/theta, ascending.
+    std::sort(chosen.begin(), chosen.end(), [&](int a, int b) { return lambda_of(theta[a]) < lambda_of(theta[b]); });
+    const int c = static_cast<int>(chosen.size());
+    MatrixXcd Ys(cur, c);
+    out.values.resize(c);
+    for (int i = 0; i < c; ++i) {
+      Ys.col(i) = Y.col(chosen[i]);
+      out.values[i] = lambda_of(theta[chosen[i]]);
+    }
     try {
-      out.vectors.resize(N_, k_);
+      out.vectors.resize(N_, c);
     } catch (const std::bad_alloc&) {
       throw SolverError("spectral basis: not enough memory for the eigenvectors");
     }
-    gemm('N', 'N', N_, k_, cur, 1.0, V_.data(), N_, Y.data(), static_cast<int>(Y.rows()), 0.0, out.vectors.data(), N_);
+    gemm('N', 'N', N_, c, cur, 1.0, V_.data(), N_, Ys.data(), cur, 0.0, out.vectors.data(), N_);
     out.vectors = d_.cwiseInverse().asDiagonal() * out.vectors;
-    report(1.0);
     return out;
   }
 
@@ -182,38 +410,43 @@ class BlockKrylovSchur {
   int solves() const { return solves_; }
 
  private:
-  void report(double p) {
-    p = std::max(progress_value_, std::min(p, 0.99));
-    progress_value_ = p;
-    if (progress_ && !progress_(p)) throw Cancelled("spectral basis computation cancelled");
+  double lambda_of(double theta) const { return sigma_ + 1.0 / theta; }
+  bool in_interval(double theta) const {
+    const double l = lambda_of(theta);
+    return l >= lo_ && l < hi_;
   }
 
-  /// D (S - sigma M)^-1 D X for X with `cols` columns starting at x (leading dimension N).
-  MatrixXcd apply(const Complex* x, int cols) {
-    MatrixXcd B(N_, cols);
+  /// Block [cur, cur + b): T applied to a random block, orthonormalized against V[0, cur).
+  void start_block(int cur) {
+    std::normal_distribution<double> normal;
+    MatrixXcd R0(N_, b_), X;
+    for (Eigen::Index j = 0; j < R0.cols(); ++j)
+      for (Eigen::Index i = 0; i < R0.rows(); ++i) R0(i, j) = Complex(normal(rng_), normal(rng_));
+    apply(R0.data(), b_, X);
+    if (cur > 0) orthogonalize_against(X, cur);
+    orthonormalize(X, cur);
+    V_.middleCols(cur, b_) = X;
+  }
+
+  /// D (S - sigma M)^-1 D X for X with `cols` columns starting at x (leading dimension N), into out.
+  void apply(const Complex* x, int cols, MatrixXcd& out) {
+    rhs_.resize(N_, cols);
     for (int j = 0; j < cols; ++j)
-      B.col(j) = d_.cwiseProduct(Eigen::Map<const Eigen::VectorXcd>(x + static_cast<std::ptrdiff_t>(j) * N_, N_));
-    MatrixXcd Z = factor_.solve(B);
+      rhs_.col(j) = d_.cwiseProduct(Eigen::Map<const Eigen::VectorXcd>(x + static_cast<std::ptrdiff_t>(j) * N_, N_));
+    factor_.solve_into(rhs_, out);
+    for (int j = 0; j < cols; ++j) out.col(j).array() *= d_.array();
     solves_ += cols;
-    return d_.asDiagonal() * Z;
   }
 
-  /// W -= V_j (V_j^H W), repeated when cancellation was strong; returns the accumulated coefficients.
+  /// W -= V_j (V_j^H W), twice (CGS2: a single classical Gram-Schmidt pass loses orthogonality once Ritz
+  /// vectors converge, and the loss grows with every restart); returns the accumulated coefficients.
   MatrixXcd orthogonalize_against(MatrixXcd& W, int j) {
     const int c = static_cast<int>(W.cols());
     MatrixXcd C = MatrixXcd::Zero(j, c), C2(j, c);
     for (int pass = 0; pass < 2; ++pass) {
-      const VectorXd before = W.colwise().norm();
       gemm('C', 'N', j, c, N_, 1.0, V_.data(), N_, W.data(), N_, 0.0, C2.data(), j);
       gemm('N', 'N', N_, c, j, -1.0, V_.data(), N_, C2.data(), j, 1.0, W.data(), N_);
       C += C2;
-      const VectorXd after = W.colwise().norm();
-      bool again = false;
-      // One classical Gram-Schmidt pass leaves components of relative size eps * before/after; repeat
-      // only under strong cancellation (the DGKS 1/sqrt(2) rule is needlessly strict here).
-      for (int i = 0; i < c; ++i) again |= after[i] < 0.1 * before[i];
-      ++passes_;
-      if (!again) break;
     }
     return C;
   }
@@ -221,7 +454,7 @@ class BlockKrylovSchur {
   /// Orthonormalizes the columns of W (already orthogonal to V_j) in place by SVQB; returns R with
   /// W_in = W_out R. Numerically dependent directions are replaced by random vectors orthogonal to
   /// V_j and the rest (their rows of R are zero).
-  MatrixXcd orthonormalize(MatrixXcd& W, int j, std::mt19937_64& rng) {
+  MatrixXcd orthonormalize(MatrixXcd& W, int j) {
     const int c = static_cast<int>(W.cols());
     MatrixXcd R = MatrixXcd::Identity(c, c);
     for (int pass = 0; pass < 2; ++pass) {
@@ -246,12 +479,13 @@ class BlockKrylovSchur {
           Rp(col, t) = dinv[t] > 0 ? s * std::conj(es.eigenvectors()(t, i)) / dinv[t] : 0.0;
         ++col;
       }
-      MatrixXcd Wn(N_, c);
+      MatrixXcd& Wn = work2_;
+      Wn.resize(N_, c);
       gemm('N', 'N', N_, col, c, 1.0, W.data(), N_, X.data(), c, 0.0, Wn.data(), N_);
       for (size_t r = 0; r < bad.size(); ++r, ++col) {
         std::normal_distribution<double> normal;
         Eigen::VectorXcd v(N_);
-        for (int i = 0; i < N_; ++i) v[i] = Complex(normal(rng), normal(rng));
+        for (int i = 0; i < N_; ++i) v[i] = Complex(normal(rng_), normal(rng_));
         for (int rep = 0; rep < 2; ++rep) {
           if (j > 0) {
             Eigen::VectorXcd coef = V_.leftCols(j).adjoint() * v;
@@ -261,7 +495,7 @@ class BlockKrylovSchur {
         }
         Wn.col(col) = v.normalized();
       }
-      W = Wn;
+      W.swap(Wn);
       R = (Rp * R).eval();
       if (bad.empty() && (lam.array() - 1.0).abs().maxCoeff() < 1e-8) break;  // already orthonormal
     }
@@ -280,17 +514,239 @@ class BlockKrylovSchur {
     }
   }
 
-  int N_, k_, b_, m_;
+  const ShiftedFactor& factor_;
+  int N_, b_, count_, want_ = 0, m_ = 0;
   double tol_;
   int max_restarts_;
-  double sigma_;
+  double sigma_, lo_, hi_;
   VectorXd d_;
-  const ProgressCallback& progress_;
-  double progress_value_ = 0.0;
-  Eigen::CholmodSupernodalLLT<ComplexSparse, Eigen::Lower> factor_;
-  MatrixXcd V_, H_;
-  int restarts_ = 0, solves_ = 0, passes_ = 0;
+  std::function<void(double)> report_;
+  std::mt19937_64 rng_;
+  MatrixXcd V_, H_, work_, work2_, rhs_;
+  int restarts_ = 0, solves_ = 0;
 };
+
+/// Rayleigh-Ritz of S, M on the columns `idx` of Z (in place; values updated): makes a group of
+/// vectors computed from different shifts exactly M-orthonormal again.
+void local_rayleigh_ritz(const ComplexSparse& S, const VectorXd& mass, MatrixXcd& Z, VectorXd& values,
+                         const std::vector<int>& idx) {
+  const int q = static_cast<int>(idx.size());
+  if (q == 0) return;
+  MatrixXcd Q(Z.rows(), q);
+  for (int i = 0; i < q; ++i) Q.col(i) = Z.col(idx[i]);
+  const MatrixXcd MQ = mass.cast<Complex>().asDiagonal() * Q;
+  const MatrixXcd SQ = S * Q;
+  MatrixXcd G = Q.adjoint() * MQ, Hs = Q.adjoint() * SQ;
+  G = (0.5 * (G + G.adjoint())).eval();
+  Hs = (0.5 * (Hs + Hs.adjoint())).eval();
+  Eigen::GeneralizedSelfAdjointEigenSolver<MatrixXcd> ges(Hs, G);
+  if (ges.info() != Eigen::Success) throw SolverError("spectral basis: local Rayleigh-Ritz failed");
+  const MatrixXcd Qn = Q * ges.eigenvectors();
+  for (int i = 0; i < q; ++i) {
+    Z.col(idx[i]) = Qn.col(i);
+    values[idx[i]] = ges.eigenvalues()[i];
+  }
+}
+
+/// The first k eigenpairs by spectrum slicing (see the header).
+RawEigenpairs sliced_eigenpairs(const ComplexSparse& S, const VectorXd& mass, int k, double unit,
+                                const SpectralBasisOptions& opt, const ProgressCallback& progress) {
+  const int N = static_cast<int>(S.rows());
+  const VectorXd d = mass.cwiseSqrt();
+  double progress_value = 0;
+  auto report = [&](double p) {
+    p = std::max(progress_value, std::min(p, 0.99));
+    progress_value = p;
+    if (progress && !progress(p)) throw Cancelled("spectral basis computation cancelled");
+  };
+  report(0.0);
+  const int slice = opt.slice_size > 0 ? opt.slice_size : 100;
+  const int max_count = std::max(1, (N - 1) / 3);
+  if (k > max_count)
+    throw ParameterError("k=" + std::to_string(k) + " is too close to the problem size " + std::to_string(N) +
+                         " for the iterative eigen solver; choose k <= " + std::to_string(max_count));
+
+  if (k <= slice + slice / 2) {
+    // One shift below the spectrum (S - sigma M positive definite even when S has a kernel).
+    const int b = std::min(opt.block_size, std::max(8, k / 8));
+    ShiftedFactor factor(S, mass, true);
+    if (!factor.factor(-1e-2 * unit))
+      throw SolverError("spectral basis: factorization of S - sigma M failed (matrix not positive definite)");
+    SliceLanczos lanczos(factor, d, -INFINITY, INFINITY, k, b, opt.tolerance, opt.max_restarts,
+                         [&](double f) { report(f); }, 0x6e6669656c64ULL);
+    RawEigenpairs r = lanczos.run();
+    report(1.0);
+    return r;
+  }
+
+  // Slice boundaries B_1 < ... < B_p with count(B_p) >= k, each slice holding about `slice` eigenvalues:
+  // placed with Weyl's law (count(lambda) ~ lambda area / (8 pi) = lambda / (2 unit)), then corrected by
+  // the measured density; counts are exact (inertia of S - B M).
+  ShiftedFactor ldl(S, mass, false);
+  std::vector<double> bounds{0.0};
+  std::vector<int> counts{0};
+  double density = 0.5 / unit;
+  while (counts.back() < k) {
+    const int have = counts.back(), need = k - have;
+    const int target = need <= slice + slice / 2 ? need + std::max(3, need / 25) : slice;
+    const double prev = bounds.back();
+    double B = prev + target / density;
+    int count = -1;
+    for (int attempt = 0; attempt < 6; ++attempt) {
+      if (!ldl.factor(B)) {
+        B *= 1 + 1e-7;
+        continue;
+      }
+      count = ldl.negative_pivots();
+      const int c = count - have;
+      const bool last = need <= slice + slice / 2;  // this slice should reach k (no tiny trailing slice)
+      const bool ok = last ? count >= k && count <= k + std::max(6, need / 8) : c >= target * 0.6 && c <= target * 1.6;
+      if (ok || attempt == 5) break;
+      density = std::max(c, 1) / (B - prev);
+      B = prev + (last ? target * 1.03 + 2 : target) / density;
+      report(0.05 * have / k);
+    }
+    if (count < 0) throw SolverError("spectral basis: factorization of S - sigma M failed");
+    if (count <= have) {  // no progress at all (cannot happen unless the counts are broken)
+      B = prev + 4 * (B - prev);
+      if (!ldl.factor(B)) throw SolverError("spectral basis: factorization of S - sigma M failed");
+      count = ldl.negative_pivots();
+      if (count <= have) throw SolverError("spectral basis: inertia count does not increase");
+    }
+    if (count - have > 0) density = (count - have) / (B - prev);
+    bounds.push_back(B);
+    counts.push_back(count);
+    report(0.05 * std::min(count, k) / k);
+  }
+  const int total = counts.back();
+  MatrixXcd Z;
+  try {
+    Z.resize(N, total);
+  } catch (const std::bad_alloc&) {
+    throw SolverError("spectral basis: not enough memory for the eigenvectors");
+  }
+  VectorXd values(total);
+  const int p = static_cast<int>(bounds.size()) - 1;
+  // Slices are independent: two workers (own factorization, single-threaded BLAS and solves) when the
+  // machine has two cores; the calling thread only reports progress (the callback is never called from
+  // a worker) and forwards cancellation.
+  const int workers = p >= 2 && std::thread::hardware_concurrency() > 1 ? 2 : 1;
+  std::vector<std::unique_ptr<ShiftedFactor>> extra;
+  std::vector<ShiftedFactor*> factors{&ldl};
+  for (int w = 1; w < workers; ++w) {
+    extra.push_back(std::make_unique<ShiftedFactor>(S, mass, false));
+    factors.push_back(extra.back().get());
+  }
+  // Largest slices first (balances the two workers).
+  std::vector<int> queue;
+  for (int j = 1; j <= p; ++j) queue.push_back(j);
+  std::stable_sort(queue.begin(), queue.end(),
+                   [&](int a, int b) { return counts[a] - counts[a - 1] > counts[b] - counts[b - 1]; });
+  std::atomic<int> next_slice{0}, finished{0};
+  std::atomic<bool> stop{false};
+  std::unique_ptr<std::atomic<double>[]> slice_progress(new std::atomic<double>[p + 1]);
+  for (int j = 0; j <= p; ++j) slice_progress[j] = 0.0;
+  std::vector<std::exception_ptr> errors(workers);
+  auto overall = [&]() {
+    double done = 0;
+    for (int j = 1; j <= p; ++j) done += (counts[j] - counts[j - 1]) * slice_progress[j].load();
+    return 0.05 + 0.93 * done / total;
+  };
+  auto worker = [&](int w) {
+    try {
+      for (;;) {
+        if (stop) return;
+        const int q = next_slice++;
+        if (q >= p) return;
+        const int j = queue[q];
+        const int c = counts[j] - counts[j - 1];
+        if (c == 0) continue;
+        ShiftedFactor& factor = *factors[w];
+        factor.set_solve_threads(workers == 1 ? 2 : 1);
+        const double lo = j == 1 ? -INFINITY : bounds[j - 1], hi = bounds[j];
+        double sigma = 0.5 * (bounds[j - 1] + bounds[j]);
+        bool ok = factor.factor(sigma);
+        for (int attempt = 0; !ok && attempt < 4; ++attempt) ok = factor.factor(sigma *= 1 + 1e-6);
+        if (!ok) throw SolverError("spectral basis: factorization of S - sigma M failed");
+        const int b = std::min(opt.block_size, std::max(8, c / 8));
+        SliceLanczos lanczos(factor, d, lo, hi, c, b, opt.tolerance, opt.max_restarts,
+                             [&, j](double f) {
+                               slice_progress[j] = f;
+                               if (workers == 1) report(overall());
+                               if (stop) throw Cancelled("spectral basis computation cancelled");
+                             },
+                             0x6e6669656c64ULL + j);
+        RawEigenpairs r = lanczos.run();
+        if (r.values.size() != c) throw SolverError("spectral basis: slice returned the wrong number of eigenpairs");
+        Z.middleCols(counts[j - 1], c) = r.vectors;  // disjoint columns per slice
+        values.segment(counts[j - 1], c) = r.values;
+        slice_progress[j] = 1.0;
+      }
+    } catch (...) {
+      errors[w] = std::current_exception();
+      stop = true;
+    }
+  };
+  if (workers == 1) {
+    worker(0);
+  } else {
+    SingleThreadedBlas blas_guard;  // two workers already use both cores
+    std::vector<std::thread> threads;
+    for (int w = 0; w < workers; ++w)
+      threads.emplace_back([&, w] {
+        worker(w);
+        ++finished;
+      });
+    std::exception_ptr cancelled;
+    while (finished < workers) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (!cancelled && !stop) {
+        try {
+          report(overall());
+        } catch (...) {
+          cancelled = std::current_exception();
+          stop = true;
+        }
+      }
+    }
+    for (auto& t : threads) t.join();
+    if (cancelled) std::rethrow_exception(cancelled);
+  }
+  for (const auto& e : errors)
+    if (e) std::rethrow_exception(e);
+  // Vectors of adjacent slices come from different shifts: M-orthogonal only up to residual / gap.
+  // Where that is visible (clusters across a boundary), a local Rayleigh-Ritz restores it.
+  for (int j = 1; j < p; ++j) {
+    const int a0 = counts[j - 1], a1 = counts[j], b1 = counts[j + 1];
+    if (a1 == a0 || b1 == a1) continue;
+    const MatrixXcd G = Z.middleCols(a0, a1 - a0).adjoint() *
+                        (mass.cast<Complex>().asDiagonal() * Z.middleCols(a1, b1 - a1));
+    std::vector<int> idx;
+    for (int r = 0; r < G.rows(); ++r)
+      if (G.row(r).cwiseAbs().maxCoeff() > 1e-12) idx.push_back(a0 + r);
+    for (int c = 0; c < G.cols(); ++c)
+      if (G.col(c).cwiseAbs().maxCoeff() > 1e-12) idx.push_back(a1 + c);
+    local_rayleigh_ritz(S, mass, Z, values, idx);
+  }
+  // Ascending order, first k.
+  std::vector<int> order(total);
+  for (int i = 0; i < total; ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return values[a] < values[b]; });
+  RawEigenpairs out;
+  out.values.resize(k);
+  bool sorted = true;
+  for (int i = 0; i < k; ++i) sorted &= order[i] == i;
+  for (int i = 0; i < k; ++i) out.values[i] = values[order[i]];
+  if (sorted) {
+    Z.conservativeResize(Eigen::NoChange, k);
+    out.vectors = std::move(Z);
+  } else {
+    out.vectors.resize(N, k);
+    for (int i = 0; i < k; ++i) out.vectors.col(i) = Z.col(order[i]);
+  }
+  report(1.0);
+  return out;
+}
 
 // ------------------------------------------------------------------------------------------ file format
 constexpr char kMagic[8] = {'N', 'F', 'B', 'A', 'S', 'I', 'S', '1'};
@@ -348,28 +804,17 @@ SpectralBasis SpectralBasis::compute(const FieldOperators& ops, int k, const Spe
   if (!(options.tolerance > 0 && options.tolerance < 1e-2))
     throw ParameterError("spectral basis tolerance must be in (0, 1e-2)");
 
-  // Small k: smaller blocks (a block Krylov space of the same size then has a higher polynomial degree).
-  const int b = std::min(options.block_size, std::max(8, k / 8));
-  // Krylov capacity: room for the wanted pairs plus as many again (at least a few blocks).
-  int capacity = options.subspace > 0 ? std::max(options.subspace, k + 2 * b) : k + std::max(4 * b, k);
-  capacity = ((capacity + b - 1) / b) * b;
   RawEigenpairs raw;
-  if (N <= options.dense_limit || capacity + b > N) {
-    if (N > 4000)
-      throw ParameterError("k=" + std::to_string(k) + " is too close to the problem size " + std::to_string(N) +
-                           " for the iterative eigen solver; choose a smaller k");
+  if (N <= options.dense_limit) {
     if (progress && !progress(0.0)) throw Cancelled("spectral basis computation cancelled");
     raw = dense_eigenpairs(S, mass, k);
     if (progress && !progress(1.0)) throw Cancelled("spectral basis computation cancelled");
   } else {
-    const double sigma = -1e-2 * ops.eigenvalue_unit(1);
     try {
-      BlockKrylovSchur solver(S, mass, sigma, k, b, capacity, options.tolerance, options.max_restarts, progress);
-      raw = solver.run();
+      raw = sliced_eigenpairs(S, mass, k, ops.eigenvalue_unit(1), options, progress);
     } catch (const std::bad_alloc&) {
       throw SolverError("spectral basis: out of memory (k=" + std::to_string(k) + ", " + std::to_string(N) +
-                        " unknowns needs about " +
-                        std::to_string(static_cast<double>(N) * (capacity + b) * sizeof(Complex) / 1e9) + " GB)");
+                        " unknowns)");
     }
   }
 
@@ -445,6 +890,47 @@ ComplexVector SpectralBasis::reconstruct(const ComplexVector& x) const {
   const Complex a(1), b0(0);
   zgemv_(&t, &N, &k, &a, vectors_d_.data(), &N, x.data(), &one, &b0, z.data(), &one);
   return z;
+}
+
+SpectralBasis SpectralBasis::truncated(int k) const {
+  if (k < 1 || k > size())
+    throw ParameterError("truncated basis size must be between 1 and " + std::to_string(size()) + ", got " +
+                         std::to_string(k));
+  SpectralBasis out;
+  out.values_ = values_.head(k);
+  if (precision_ == BasisPrecision::Single)
+    out.vectors_f_ = vectors_f_.leftCols(k);
+  else
+    out.vectors_d_ = vectors_d_.leftCols(k);
+  out.mass_ = mass_;
+  out.precision_ = precision_;
+  out.mesh_hash_ = mesh_hash_;
+  out.n_ = n_;
+  out.weights_ = weights_;
+  return out;
+}
+
+SpectralBasis SpectralBasis::with_precision(BasisPrecision precision) const {
+  SpectralBasis out;
+  out.values_ = values_;
+  out.mass_ = mass_;
+  out.precision_ = precision;
+  out.mesh_hash_ = mesh_hash_;
+  out.n_ = n_;
+  out.weights_ = weights_;
+  try {
+    if (precision == precision_) {
+      out.vectors_d_ = vectors_d_;
+      out.vectors_f_ = vectors_f_;
+    } else if (precision == BasisPrecision::Single) {
+      out.vectors_f_ = vectors_d_.cast<std::complex<float>>();
+    } else {
+      out.vectors_d_ = vectors_f_.cast<Complex>();
+    }
+  } catch (const std::bad_alloc&) {
+    throw SolverError("spectral basis: not enough memory to convert the basis");
+  }
+  return out;
 }
 
 std::size_t SpectralBasis::memory_bytes() const {

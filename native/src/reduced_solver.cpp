@@ -1,0 +1,315 @@
+#include "nfield/reduced_solver.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "nfield/errors.hpp"
+#include "nfield/singularities.hpp"
+
+namespace nfield {
+
+ReducedSolver::ReducedSolver(std::shared_ptr<const FieldOperators> ops, std::shared_ptr<const SpectralBasis> basis,
+                             int order, double strength, const ComplexVector& alignment, SplineKind kind,
+                             double lambda_override)
+    : ops_(std::move(ops)), basis_(std::move(basis)), order_(order), kind_(kind) {
+  if (!ops_ || !basis_) throw ParameterError("reduced solver needs operators and a spectral basis");
+  if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
+  const FieldOperators& o = *ops_;
+  if (basis_->size() < 1 || basis_->num_unknowns() != o.num_unknowns() ||
+      basis_->mesh_hash() != o.mesh().content_hash() || basis_->n() != o.n() || basis_->weights() != o.weights())
+    throw ParameterError("spectral basis was computed for different operators (mesh, n or weights)");
+  nu_m_ = basis_->values().array().max(0.0).pow(order);
+  set_alignment(alignment);
+  if (std::isfinite(lambda_override))
+    set_lambda(lambda_override);
+  else if (kind == SplineKind::Vector && !has_alignment_)
+    update_lambda(-kVectorRegularisation * o.eigenvalue_unit(order));
+  else
+    update_lambda(strength_to_lambda(o, order, strength));
+}
+
+void ReducedSolver::update_lambda(double lambda) {
+  const Eigen::VectorXd diag = nu_m_.array() - lambda;
+  if (!(diag.minCoeff() > 0) || !std::isfinite(lambda))
+    throw ParameterError("lambda=" + std::to_string(lambda) + " makes the reduced system singular or indefinite");
+  lambda_ = lambda;
+  inv_diag_ = diag.cwiseInverse();
+}
+
+void ReducedSolver::set_strength(double strength) {
+  if (kind_ == SplineKind::Vector && !has_alignment_) return;  // fixed regularisation, as ExactSolver
+  update_lambda(strength_to_lambda(*ops_, order_, strength));
+}
+
+void ReducedSolver::set_lambda(double lambda) { update_lambda(lambda); }
+
+void ReducedSolver::set_alignment(const ComplexVector& alignment) {
+  const FieldOperators& o = *ops_;
+  const TriangleMesh& mesh = o.mesh();
+  const int N = o.num_unknowns();
+  has_alignment_ = alignment.size() > 0;
+  alignment_ = ComplexVector::Zero(N);
+  if (has_alignment_) {
+    if (alignment.size() != mesh.num_faces())
+      throw InputError("alignment field must have one value per face (" + std::to_string(mesh.num_faces()) +
+                       "), got " + std::to_string(alignment.size()));
+    if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
+    for (int u = 0; u < N; ++u) alignment_[u] = alignment[o.face_of_unknown(u)];
+  }
+  double sum = 0;
+  int count = 0;
+  for (int u = 0; u < N; ++u)
+    if (std::abs(alignment_[u]) > 0) sum += std::norm(alignment_[u]), ++count;
+  spike_ = 100.0 * (count ? std::sqrt(sum / count) : 1.0);
+  projected_ = has_alignment_ ? basis_->project(alignment_) : ComplexVector::Zero(basis_->size());
+}
+
+void ReducedSolver::check_face(int face) const {
+  const TriangleMesh& mesh = ops_->mesh();
+  if (face < 0 || face >= mesh.num_faces())
+    throw ConstraintError("face " + std::to_string(face) + " is out of range (mesh has " +
+                          std::to_string(mesh.num_faces()) + " faces)");
+  if (!mesh.face_active(face) || ops_->unknown_of_face(face) < 0)
+    throw ConstraintError("face " + std::to_string(face) + " is degenerate and excluded from the field");
+}
+
+void ReducedSolver::set_direction_constraint(int face, Complex d) {
+  check_face(face);
+  const double len = std::abs(d);
+  if (!std::isfinite(len) || len <= 1e-12)
+    throw ConstraintError("direction constraint on face " + std::to_string(face) + " has a zero or invalid direction");
+  constraints_.faces[face] = {ConstraintSet::Kind::Direction, d / len};
+}
+
+void ReducedSolver::set_vector_constraint(int face, Complex value) {
+  check_face(face);
+  if (!std::isfinite(std::abs(value)))
+    throw ConstraintError("vector constraint on face " + std::to_string(face) + " is not finite");
+  constraints_.faces[face] = {ConstraintSet::Kind::Vector, value};
+}
+
+void ReducedSolver::remove_constraint(int face) {
+  if (!constraints_.faces.erase(face))
+    throw ConstraintError("face " + std::to_string(face) + " has no constraint to remove");
+}
+
+void ReducedSolver::set_singularity(int vertex, int numerator) {
+  auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
+  constraints_.singularities[vertex] = numerator;
+  singularity_rows_[vertex] = std::move(rows);
+}
+
+void ReducedSolver::remove_singularity(int vertex) {
+  if (!constraints_.singularities.erase(vertex))
+    throw ConstraintError("vertex " + std::to_string(vertex) + " has no singularity constraint to remove");
+  singularity_rows_.erase(vertex);
+}
+
+void ReducedSolver::clear_constraints() {
+  constraints_ = ConstraintSet{};
+  singularity_rows_.clear();
+}
+
+const ComplexVector& ReducedSolver::basis_row(int face) {
+  auto it = rows_.find(face);
+  if (it != rows_.end()) return it->second;
+  const int u = ops_->unknown_of_face(face);
+  const int k = basis_->size();
+  ComplexVector r(k);
+  if (basis_->precision() == BasisPrecision::Single) {
+    const Eigen::MatrixXcf& U = basis_->vectors_single();
+    for (int i = 0; i < k; ++i) r[i] = std::conj(Complex(U(u, i)));
+  } else {
+    const Eigen::MatrixXcd& U = basis_->vectors_double();
+    for (int i = 0; i < k; ++i) r[i] = std::conj(U(u, i));
+  }
+  if (rows_.size() > 4096) rows_.clear();  // bounded cache
+  return rows_.emplace(face, std::move(r)).first->second;
+}
+
+Complex ReducedSolver::value_at(const ComplexVector& x, int face) {
+  return basis_row(face).dot(x);  // sum conj(conj U) x = (U x)_f
+}
+
+std::vector<ConstraintRow> ReducedSolver::build_rows(const std::vector<int>& pinned, double pin_magnitude) const {
+  std::vector<ConstraintRow> rows;
+  for (const auto& [face, c] : constraints_.faces) {
+    const bool pin = std::binary_search(pinned.begin(), pinned.end(), face);
+    if (c.kind == ConstraintSet::Kind::Direction && !pin) {
+      ConstraintRow r;
+      r.terms.emplace_back(face, Complex(0, 1) * c.value);  // <u, J d> = Re(conj(i d) u)
+      rows.push_back(std::move(r));
+    } else {
+      const Complex value = c.kind == ConstraintSet::Kind::Vector ? c.value : pin_magnitude * c.value;
+      auto [re, im] = complex_equation_rows({{face, Complex(1, 0)}}, value);
+      rows.push_back(std::move(re));
+      rows.push_back(std::move(im));
+    }
+  }
+  for (const auto& [vertex, rs] : singularity_rows_) rows.insert(rows.end(), rs.begin(), rs.end());
+  return rows;
+}
+
+ComplexVector ReducedSolver::schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y) {
+  const int R = static_cast<int>(rows.size()), k = size();
+  constraint_residual_ = 0;
+  if (R == 0) return y;
+  // G = [g_1 .. g_R], g_r = sum_t c_t conj(U[f_t, :])^T; row functional on x: Re(g_r^H x).
+  Eigen::MatrixXcd G = Eigen::MatrixXcd::Zero(k, R);
+  for (int r = 0; r < R; ++r)
+    for (const auto& [f, c] : rows[r].terms) G.col(r) += c * basis_row(f);
+  const Eigen::MatrixXcd LG = inv_diag_.cast<Complex>().asDiagonal() * G;
+  // K = Re(G^H Lambda^-1 G) = Gr^T L Gr + Gi^T L Gi (real products: half the work of the complex one).
+  const Eigen::MatrixXd Gr = G.real(), Gi = G.imag();
+  Eigen::MatrixXd K = Gr.transpose() * (inv_diag_.asDiagonal() * Gr);
+  K.noalias() += Gi.transpose() * (inv_diag_.asDiagonal() * Gi);
+  Eigen::VectorXd rhs(R), h(R);
+  for (int r = 0; r < R; ++r) h[r] = rows[r].rhs;
+  rhs = (G.adjoint() * y).real() - h;
+  Eigen::VectorXd gamma;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(K);
+  const Eigen::VectorXd diag = ldlt.vectorD().cwiseAbs();
+  const double kmax = std::max(diag.maxCoeff(), 1e-300);
+  if (ldlt.info() == Eigen::Success && diag.minCoeff() > 1e-11 * kmax) {
+    gamma = ldlt.solve(rhs);
+  } else {
+    // Rows dependent in the basis: least squares (pseudo-inverse).
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(K);
+    const Eigen::VectorXd ev = es.eigenvalues();
+    const double emax = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+    const Eigen::VectorXd q = es.eigenvectors().transpose() * rhs;
+    gamma = Eigen::VectorXd::Zero(R);
+    for (int i = 0; i < R; ++i)
+      if (ev[i] > 1e-10 * emax) gamma += es.eigenvectors().col(i) * (q[i] / ev[i]);
+  }
+  ComplexVector x = y - LG * gamma.cast<Complex>();
+  // Constraint violation, relative to the largest value at a constrained face.
+  const Eigen::VectorXd l = (G.adjoint() * x).real();
+  double scale = 0;
+  for (int r = 0; r < R; ++r) scale = std::max(scale, std::abs(h[r]));
+  for (const auto& row : rows)
+    for (const auto& t : row.terms) scale = std::max(scale, std::abs(value_at(x, t.first)));
+  constraint_residual_ = (l - h).cwiseAbs().maxCoeff() / std::max(scale, 1e-300);
+  return x;
+}
+
+ComplexVector ReducedSolver::solve_coefficients() {
+  const FieldOperators& o = *ops_;
+  const TriangleMesh& mesh = o.mesh();
+  sign_fixed_.clear();
+  pin_magnitude_ = 0;
+  const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
+  // b_U = U^H b with the +d safeguard u'_f = s_f d_f at direction constraints (O(k) per face).
+  ComplexVector bU = rhs_scale * projected_;
+  bool has_data = has_alignment_;
+  const double mean_area = mesh.total_area() / o.num_unknowns();
+  for (const auto& [f, c] : constraints_.faces) {
+    if (c.kind == ConstraintSet::Kind::Direction) {
+      const int u = o.unknown_of_face(f);
+      const double area = o.mass()[u];
+      const Complex delta = spike_ * (mean_area / area) * c.value - alignment_[u];
+      bU += (rhs_scale * area * delta) * basis_row(f);
+      has_data = true;
+    } else if (std::abs(c.value) > 0) {
+      has_data = true;
+    }
+  }
+
+  auto solve_with_pins = [&](const ComplexVector& b) {
+    const ComplexVector y = inv_diag_.cast<Complex>().cwiseProduct(b);
+    std::vector<int> pinned;
+    double pin_magnitude = 0;
+    for (int iteration = 0;; ++iteration) {
+      const ComplexVector x = schur_solve(build_rows(pinned, pin_magnitude), y);
+      std::vector<int> wrong;
+      std::vector<double> good;
+      double scale = 0;
+      std::vector<std::pair<int, double>> along;
+      for (const auto& [f, c] : constraints_.faces) {
+        const Complex value = value_at(x, f);
+        scale = std::max(scale, std::abs(value));
+        if (c.kind == ConstraintSet::Kind::Direction && !std::binary_search(pinned.begin(), pinned.end(), f))
+          along.emplace_back(f, (std::conj(c.value) * value).real());
+      }
+      for (const auto& [f, t] : along) (t > 1e-8 * scale ? good.push_back(t) : wrong.push_back(f));
+      if (wrong.empty()) {
+        pin_magnitude_ = pin_magnitude;
+        return x;
+      }
+      if (iteration > static_cast<int>(constraints_.faces.size()))
+        throw SolverError("could not orient every direction constraint along +d");
+      if (pinned.empty()) {
+        if (!good.empty()) {
+          std::nth_element(good.begin(), good.begin() + good.size() / 2, good.end());
+          pin_magnitude = good[good.size() / 2];
+        } else {
+          pin_magnitude = scale;
+        }
+        if (!(pin_magnitude > 0)) pin_magnitude = 1.0;
+      }
+      pinned.insert(pinned.end(), wrong.begin(), wrong.end());
+      std::sort(pinned.begin(), pinned.end());
+      sign_fixed_ = pinned;
+    }
+  };
+
+  ComplexVector x;
+  const int k = size();
+  if (has_data) {
+    x = solve_with_pins(bU);
+  } else if (constraints_.size() == 0) {
+    x = ComplexVector::Zero(k);  // the smoothest field: first basis vector, scaled to unit RMS
+    x[0] = std::sqrt(mesh.total_area());
+  } else {
+    // Homogeneous constraints only: smoothest field under them, by inverse iteration in the basis
+    // (b = M z for z = U x is b_U = x).
+    ComplexVector seed = ComplexVector::Zero(k);
+    seed[0] = 1.0;
+    for (int it = 0; it < 50; ++it) {
+      ComplexVector next = solve_with_pins(seed);
+      const double norm = next.norm();
+      if (!(norm > 0)) throw SolverError("singularity constraints admit only the zero field here");
+      next /= norm;
+      const double change = (next - seed).norm();
+      seed = next;
+      if (change < 1e-10) break;
+    }
+    x = solve_with_pins(seed * std::sqrt(mesh.total_area()));  // the exact solver's scale convention
+  }
+  last_x_ = x;
+  return x;
+}
+
+ComplexVector ReducedSolver::reconstruct(const ComplexVector& x) const {
+  return ops_->to_faces(basis_->reconstruct(x));
+}
+
+ComplexVector ReducedSolver::solve() {
+  const ComplexVector x = solve_coefficients();
+  ComplexVector field = reconstruct(x);
+  // Snap constrained faces onto their constraint (as the exact solver does).
+  for (const auto& [f, c] : constraints_.faces) {
+    Complex& z = field[f];
+    if (c.kind == ConstraintSet::Kind::Vector)
+      z = c.value;
+    else if (std::binary_search(sign_fixed_.begin(), sign_fixed_.end(), f))
+      z = pin_magnitude_ * c.value;
+    else
+      z = (std::conj(c.value) * z).real() * c.value;
+  }
+  return field;
+}
+
+ComplexVector low_pass(const FieldOperators& ops, const SpectralBasis& basis, const ComplexVector& field) {
+  if (basis.num_unknowns() != ops.num_unknowns() || basis.mesh_hash() != ops.mesh().content_hash() ||
+      basis.n() != ops.n())
+    throw ParameterError("spectral basis was computed for different operators (mesh, n or weights)");
+  if (field.size() != ops.mesh().num_faces())
+    throw InputError("field must have one value per face (" + std::to_string(ops.mesh().num_faces()) + "), got " +
+                     std::to_string(field.size()));
+  if (!field.allFinite()) throw InputError("field contains NaN or infinite values");
+  return ops.to_faces(basis.reconstruct(basis.project(ops.to_unknowns(field))));
+}
+
+}  // namespace nfield
