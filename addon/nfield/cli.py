@@ -36,12 +36,17 @@ def _one_line(text: str) -> str:
 
 
 # ---------------------------------------------------------------------- argument types
+def _convert(s: str, convert, must_be: str):
+    """convert(s); a value it rejects is an argparse error "<must_be>, got '<s>'"."""
+    try:
+        return convert(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{must_be}, got '{s}'") from None
+
+
 def _int_at_least(lo: int, name: str):
     def parse(s: str) -> int:
-        try:
-            v = int(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer, got '{s}'") from None
+        v = _convert(s, int, f"{name} must be an integer")
         if v < lo:
             raise argparse.ArgumentTypeError(f"{name} must be >= {lo} (got {v})")
         return v
@@ -49,20 +54,14 @@ def _int_at_least(lo: int, name: str):
 
 
 def _order(s: str) -> int:
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"order must be an integer 1..4, got '{s}'") from None
+    v = _convert(s, int, "order must be an integer 1..4")
     if not 1 <= v <= 4:
         raise argparse.ArgumentTypeError(f"order must be 1, 2, 3 or 4 (got {v})")
     return v
 
 
 def _strength(s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"strength must be a number > 0, got '{s}'") from None
+    v = _convert(s, float, "strength must be a number > 0")
     if not math.isfinite(v) or v <= 0:
         raise argparse.ArgumentTypeError(f"strength must be a finite number > 0 (got {s})")
     return v

@@ -51,20 +51,17 @@ _OPTIONAL_MODULES = ("overlay", "tools")
 _registered: list = []
 
 
-def _check_native() -> str:
-    try:
-        from ..core import native
+def _app_handlers() -> tuple:
+    """(handler list, function) pairs that keep the session cache in step with file load and undo/redo."""
+    from . import session_cache
 
-        native()
-    except ImportError as exc:
-        return str(exc)
-    return ""
+    return ((bpy.app.handlers.load_post, session_cache.on_load_post),
+            (bpy.app.handlers.undo_post, session_cache.on_undo_redo),
+            (bpy.app.handlers.redo_post, session_cache.on_undo_redo))
 
 
 def register():
-    from . import session_cache
-
-    state.native_problem = _check_native()
+    state.native_problem = state.native_error() or ""
     if state.native_problem:
         print(f"nfield: {state.native_problem}")
     for name in _MODULES + _OPTIONAL_MODULES:
@@ -76,9 +73,7 @@ def register():
             raise
         mod.register()
         _registered.append(mod)
-    for lst, fn in ((bpy.app.handlers.load_post, session_cache.on_load_post),
-                    (bpy.app.handlers.undo_post, session_cache.on_undo_redo),
-                    (bpy.app.handlers.redo_post, session_cache.on_undo_redo)):
+    for lst, fn in _app_handlers():
         if fn not in lst:
             lst.append(fn)
 
@@ -86,9 +81,7 @@ def register():
 def unregister():
     from . import session_cache
 
-    for lst, fn in ((bpy.app.handlers.load_post, session_cache.on_load_post),
-                    (bpy.app.handlers.undo_post, session_cache.on_undo_redo),
-                    (bpy.app.handlers.redo_post, session_cache.on_undo_redo)):
+    for lst, fn in _app_handlers():
         if fn in lst:
             lst.remove(fn)
     while _registered:

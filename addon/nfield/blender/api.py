@@ -187,18 +187,29 @@ def add_constraint(obj, face: int, direction: Iterable[float], kind: str = "dire
     return item
 
 
+def _index_of(items, key: str, value) -> int | None:
+    """Index of the live item whose `key` (face / vertex) is `value`, else of a stale one, else None."""
+    idx = next((i for i, it in enumerate(items) if getattr(it, key) == value and not it.stale), None)
+    if idx is None:
+        idx = next((i for i, it in enumerate(items) if getattr(it, key) == value), None)
+    return idx
+
+
+def _clamped_index(index: int, items) -> int:
+    """`index` moved inside `items` (0 when empty): a list's active index after an item was removed."""
+    return max(0, min(index, len(items) - 1))
+
+
 def remove_constraint(obj, face: int) -> None:
     """Remove the constraint on polygon `face` (a stale one with that face number if no live one)."""
     _check_object(obj)
     st = obj.nfield
-    idx = next((i for i, c in enumerate(st.constraints) if c.face == face and not c.stale), None)
-    if idx is None:
-        idx = next((i for i, c in enumerate(st.constraints) if c.face == face), None)
+    idx = _index_of(st.constraints, "face", face)
     if idx is None:
         faces = sorted(c.face for c in st.constraints)
         raise NFieldError(f"face {face} has no constraint (constrained faces: {faces or 'none'})")
     st.constraints.remove(idx)
-    st.active_constraint_index = max(0, min(st.active_constraint_index, len(st.constraints) - 1))
+    st.active_constraint_index = _clamped_index(st.active_constraint_index, st.constraints)
 
 
 def clear_constraints(obj, stale_only: bool = False) -> int:
@@ -245,14 +256,12 @@ def add_singularity(obj, vertex: int, index: float):
 def remove_singularity(obj, vertex: int) -> None:
     _check_object(obj)
     st = obj.nfield
-    idx = next((i for i, s in enumerate(st.singularities) if s.vertex == vertex and not s.stale), None)
-    if idx is None:
-        idx = next((i for i, s in enumerate(st.singularities) if s.vertex == vertex), None)
+    idx = _index_of(st.singularities, "vertex", vertex)
     if idx is None:
         verts = sorted(s.vertex for s in st.singularities)
         raise NFieldError(f"vertex {vertex} has no prescribed singularity (pinned vertices: {verts or 'none'})")
     st.singularities.remove(idx)
-    st.active_singularity_index = max(0, min(st.active_singularity_index, len(st.singularities) - 1))
+    st.active_singularity_index = _clamped_index(st.active_singularity_index, st.singularities)
 
 
 def clear_singularities(obj) -> int:
@@ -453,8 +462,8 @@ def _restore_design(st, saved: tuple) -> None:
     for vertex, num, stale, pos in sings:
         s = st.singularities.add()
         s.vertex, s.numerator, s.stale, s.position = vertex, num, stale, pos
-    st.active_constraint_index = max(0, min(st.active_constraint_index, len(st.constraints) - 1))
-    st.active_singularity_index = max(0, min(st.active_singularity_index, len(st.singularities) - 1))
+    st.active_constraint_index = _clamped_index(st.active_constraint_index, st.constraints)
+    st.active_singularity_index = _clamped_index(st.active_singularity_index, st.singularities)
 
 
 def release_layer(obj, index: int) -> None:
@@ -475,7 +484,7 @@ def release_layer(obj, index: int) -> None:
         entry.extra["design_state"] = session_cache.design_state(obj)
     else:
         st.layers.remove(int(index))
-    st.active_layer_index = max(0, min(st.active_layer_index, len(st.layers) - 1))
+    st.active_layer_index = _clamped_index(st.active_layer_index, st.layers)
 
 
 # ------------------------------------------------------------------------------------------ spectral

@@ -29,6 +29,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 
+from .operators import _NFieldObjectOperator
 from .session_cache import NFieldError
 
 __all__ = ["build", "strokes_to_object", "density_values", "NFIELD_OT_hatching", "register", "unregister"]
@@ -268,13 +269,12 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
 
 
 # ------------------------------------------------------------------------------------------ operator
-class NFIELD_OT_hatching(bpy.types.Operator):
+class NFIELD_OT_hatching(_NFieldObjectOperator, bpy.types.Operator):
     """Trace evenly spaced strokes along the field and write them as a curves object parented to the mesh
     (render with Cycles or convert to Grease Pencil)"""
 
     bl_idname = "nfield.hatching"
     bl_label = "Hatching Strokes"
-    bl_options = {"REGISTER", "UNDO"}
 
     spacing: FloatProperty(name="Spacing", default=0.01, min=1e-4, soft_min=0.002, soft_max=0.1, precision=4,
                            description="Stroke separation as a fraction of the bounding-box diagonal")
@@ -295,45 +295,17 @@ class NFIELD_OT_hatching(bpy.types.Operator):
     legacy: BoolProperty(name="Legacy Curve", default=False,
                          description="Write a legacy Curve object instead of the new Curves type")
 
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        if obj is None or obj.type != "MESH":
-            cls.poll_message_set("Select a mesh object")
-            return False
-        return True
-
     def execute(self, context):
-        from .operators import _native_error
-
-        obj = context.active_object
-        problem = _native_error()
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-            return {"CANCELLED"}
-        try:
+        def fn(obj):
             cobj = build(obj, spacing=self.spacing, family=self.family, cross_hatch=self.cross_hatch,
                          seed=self.seed, max_length=self.max_length or None, min_length=self.min_length or None,
                          radius=self.radius or None, density=self.density or None,
                          legacy=True if self.legacy or not has_curves_type() else None)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        except RuntimeError as exc:
-            self.report({"ERROR"}, f"numerical failure: {exc}")
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"nfield: {cobj['nfield_strokes']} strokes in '{cobj.name}'")
-        return {"FINISHED"}
+            return f"nfield: {cobj['nfield_strokes']} strokes in '{cobj.name}'"
+
+        return self.run(context, fn)
 
 
 classes = (NFIELD_OT_hatching,)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 
+from .operators import _NFieldObjectOperator
 from .session_cache import NFieldError
 
 __all__ = ["build", "find_socket", "ensure_nodes", "NFIELD_OT_material_anisotropic", "register", "unregister"]
@@ -267,13 +268,12 @@ def ensure_nodes(mat) -> None:
 
 
 # ------------------------------------------------------------------------------------------ operator
-class NFIELD_OT_material_anisotropic(bpy.types.Operator):
+class NFIELD_OT_material_anisotropic(_NFieldObjectOperator, bpy.types.Operator):
     """Create or update a material whose anisotropic reflection follows the field (rendered by Cycles;
     EEVEE ignores anisotropy)"""
 
     bl_idname = "nfield.material_anisotropic"
     bl_label = "Anisotropic Material"
-    bl_options = {"REGISTER", "UNDO"}
 
     anisotropy: FloatProperty(name="Anisotropy", default=0.8, min=0.0, max=1.0, subtype="FACTOR",
                               description="Amount of anisotropy (0 = isotropic); Cycles only")
@@ -289,50 +289,23 @@ class NFIELD_OT_material_anisotropic(bpy.types.Operator):
     base_color: FloatVectorProperty(name="Base Color", size=4, subtype="COLOR", min=0.0, max=1.0,
                                     default=(0.8, 0.8, 0.82, 1.0))
 
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        if obj is None or obj.type != "MESH":
-            cls.poll_message_set("Select a mesh object")
-            return False
-        return True
-
     def execute(self, context):
-        from .operators import _native_error
-
-        obj = context.active_object
-        problem = _native_error()
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-            return {"CANCELLED"}
-        try:
+        def fn(obj):
             mat = build(obj, anisotropy=self.anisotropy, direction=self.direction, source=self.source,
                         material=self.material or None, roughness=self.roughness, metallic=self.metallic,
                         base_color=self.base_color)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        except RuntimeError as exc:
-            self.report({"ERROR"}, f"numerical failure: {exc}")
-            return {"CANCELLED"}
-        note = "" if context.scene.render.engine == "CYCLES" else " (anisotropy shows in Cycles; EEVEE ignores it)"
-        if obj.nfield.n > 2:
-            self.report({"WARNING"}, f"nfield: material '{mat.name}' follows the field{note}; with n = "
-                        f"{obj.nfield.n} each face reports one of its {obj.nfield.n} directions, so the highlight "
-                        f"mixes them face by face: use n = 2 for shading")
-            return {"FINISHED"}
-        self.report({"INFO"}, f"nfield: material '{mat.name}' follows the field{note}")
-        return {"FINISHED"}
+            note = "" if context.scene.render.engine == "CYCLES" else " (anisotropy shows in Cycles; EEVEE ignores it)"
+            message = f"nfield: material '{mat.name}' follows the field{note}"
+            n = obj.nfield.n
+            if n > 2:  # a warning, not the INFO report of run(): the highlight mixes directions
+                self.report({"WARNING"}, f"{message}; with n = {n} each face reports one of its {n} directions, "
+                            f"so the highlight mixes them face by face: use n = 2 for shading")
+                return None
+            return message
+
+        return self.run(context, fn)
 
 
 classes = (NFIELD_OT_material_anisotropic,)
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -14,23 +14,14 @@ import threading
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
-from . import api, session_cache
+from . import api, session_cache, state
 from .properties import CONSTRAINT_KIND_ITEMS
 
 
-def _native_error() -> str | None:
-    """The loader's message if the compiled module cannot be imported, else None."""
-    try:
-        from ..core import native
-
-        native()
-    except ImportError as exc:
-        return str(exc)
-    return None
-
-
 class _NFieldObjectOperator:
-    """Mixin: poll for an active mesh object; run an api call with error reporting."""
+    """Mixin: poll for an active mesh object; run an api call with error reporting.
+
+    Also used by the material and hatching operators, so every nfield operator reports problems alike."""
 
     bl_options = {"REGISTER", "UNDO"}
 
@@ -45,11 +36,17 @@ class _NFieldObjectOperator:
             return False
         return True
 
-    def run(self, context, fn, *, solve_after: bool = False):
-        obj = context.active_object
-        problem = _native_error()
+    def report_native_error(self) -> bool:
+        """Report why the compiled solver cannot be loaded; True if it cannot (the operator must cancel)."""
+        problem = state.native_error()
         if problem is not None:
             self.report({"ERROR"}, problem)
+        return problem is not None
+
+    def run(self, context, fn, *, solve_after: bool = False):
+        """fn(obj) -> message or None, then a re-solve if `solve_after` and Live Update is on."""
+        obj = context.active_object
+        if self.report_native_error():
             return {"CANCELLED"}
         try:
             message = fn(obj)
@@ -64,6 +61,14 @@ class _NFieldObjectOperator:
         if message:
             self.report({"INFO"}, message)
         return {"FINISHED"}
+
+
+def _active_item(items, active_index: int, what: str):
+    """The item the panel's list highlights (the last one if the stored index ran past the end); for the
+    remove operators called without an explicit face / vertex."""
+    if not items:
+        raise api.NFieldError(f"the object has no {what}")
+    return items[min(active_index, len(items) - 1)]
 
 
 class NFIELD_OT_solve(_NFieldObjectOperator, bpy.types.Operator):
@@ -121,9 +126,7 @@ class NFIELD_OT_constraint_remove(_NFieldObjectOperator, bpy.types.Operator):
             face = self.face
             if face < 0:
                 st = obj.nfield
-                if not st.constraints:
-                    raise api.NFieldError("the object has no constraints")
-                face = st.constraints[min(st.active_constraint_index, len(st.constraints) - 1)].face
+                face = _active_item(st.constraints, st.active_constraint_index, "constraints").face
             api.remove_constraint(obj, face)
 
         return self.run(context, fn, solve_after=True)
@@ -183,9 +186,7 @@ class NFIELD_OT_singularity_remove(_NFieldObjectOperator, bpy.types.Operator):
             v = self.vertex
             if v < 0:
                 st = obj.nfield
-                if not st.singularities:
-                    raise api.NFieldError("the object has no prescribed singularities")
-                v = st.singularities[min(st.active_singularity_index, len(st.singularities) - 1)].vertex
+                v = _active_item(st.singularities, st.active_singularity_index, "prescribed singularities").vertex
             api.remove_singularity(obj, v)
 
         return self.run(context, fn, solve_after=True)
@@ -286,9 +287,7 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
 
     def invoke(self, context, event):
         obj = context.active_object
-        problem = _native_error()
-        if problem is not None:
-            self.report({"ERROR"}, problem)
+        if self.report_native_error():
             return {"CANCELLED"}
         self._previous = (obj.nfield.solver_mode, obj.nfield.spectral_k)
         try:
@@ -380,12 +379,4 @@ classes = (
     NFIELD_OT_precompute_spectral,
 )
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -439,15 +439,20 @@ def _can_draw() -> bool:
     return bpy is not None and not bpy.app.background
 
 
+def _mark_changed(obj, result) -> None:
+    """Bump the object's version (its batches are rebuilt before the next draw); keep `result` if given."""
+    state = _states.setdefault(obj.name, _State())
+    if result is not None:
+        state.result = result
+    state.version += 1
+
+
 def refresh(obj, result=None) -> None:
     """The field or design of ``obj`` changed (call after every solve / edit): rebuild its batches now and
     redraw. ``result``: the new FieldResult (else the session cache's or the output attribute is used)."""
     if obj is None or obj.type != "MESH":
         return
-    state = _states.setdefault(obj.name, _State())
-    if result is not None:
-        state.result = result
-    state.version += 1
+    _mark_changed(obj, result)
     if _can_draw():
         _build(obj)
         _tag_redraw()
@@ -458,10 +463,7 @@ def tag_changed(obj, result=None) -> None:
     next draw (use when several changes happen in one go)."""
     if obj is None:
         return
-    state = _states.setdefault(obj.name, _State())
-    if result is not None:
-        state.result = result
-    state.version += 1
+    _mark_changed(obj, result)
     _schedule(obj.name)
 
 

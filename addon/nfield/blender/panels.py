@@ -11,6 +11,21 @@ def _mesh_object(context):
     return obj if obj is not None and obj.type == "MESH" else None
 
 
+def _list_with_remove(layout, list_id: str, st, items: str, active: str, rows: int, remove_op: str):
+    """A UIList of st.<items> with a side column starting with the remove button; returns that column."""
+    row = layout.row()
+    row.template_list(list_id, "", st, items, st, active, rows=rows)
+    col = row.column(align=True)
+    col.operator(remove_op, icon="REMOVE", text="")
+    return col
+
+
+def _wrapped_labels(layout, text: str, width: int = 48) -> None:
+    """`text` as labels of at most `width` characters (the sidebar does not wrap)."""
+    for line in _wrap(text, width):
+        layout.label(text=line)
+
+
 class NFIELD_UL_constraints(bpy.types.UIList):
     bl_idname = "NFIELD_UL_constraints"
 
@@ -68,9 +83,7 @@ class NFIELD_PT_main(_NFieldPanel, bpy.types.Panel):
             box = layout.box()
             box.alert = True
             box.label(text="The compiled solver cannot be loaded:", icon="ERROR")
-            col = box.column(align=True)
-            for line in _wrap(state.native_problem, 48):
-                col.label(text=line)
+            _wrapped_labels(box.column(align=True), state.native_problem)
             return
         obj = _mesh_object(context)
         if obj is None:
@@ -96,8 +109,7 @@ class NFIELD_PT_main(_NFieldPanel, bpy.types.Panel):
         if st.last_message:
             box = layout.box()
             box.alert = st.last_message.startswith("Solve failed") or st.num_stale > 0
-            for line in _wrap(st.last_message, 48):
-                box.label(text=line)
+            _wrapped_labels(box, st.last_message)
         if st.num_stale:
             row = layout.row()
             row.alert = True
@@ -112,17 +124,14 @@ class NFIELD_PT_constraints(_NFieldPanel, bpy.types.Panel):
     def draw(self, context):
         st = _mesh_object(context).nfield
         layout = self.layout
-        row = layout.row()
-        row.template_list("NFIELD_UL_constraints", "", st, "constraints", st, "active_constraint_index", rows=3)
-        col = row.column(align=True)
-        col.operator("nfield.constraint_remove", icon="REMOVE", text="")
+        col = _list_with_remove(layout, "NFIELD_UL_constraints", st, "constraints", "active_constraint_index", 3,
+                                "nfield.constraint_remove")
         col.operator("nfield.constraint_clear", icon="X", text="")
         if any(c.stale for c in st.constraints):
             layout.operator("nfield.constraint_clear", text="Remove Stale").stale_only = True
         layout.label(text="Singularities")
-        row = layout.row()
-        row.template_list("NFIELD_UL_singularities", "", st, "singularities", st, "active_singularity_index", rows=2)
-        row.column(align=True).operator("nfield.singularity_remove", icon="REMOVE", text="")
+        _list_with_remove(layout, "NFIELD_UL_singularities", st, "singularities", "active_singularity_index", 2,
+                          "nfield.singularity_remove")
 
 
 class NFIELD_PT_region(_NFieldPanel, bpy.types.Panel):
@@ -145,9 +154,8 @@ class NFIELD_PT_region(_NFieldPanel, bpy.types.Panel):
                 layout.label(text="Select faces in edit mode", icon="INFO")
             layout.operator("nfield.region_begin", text="Begin Region from Selection")
         if st.layers:
-            row = layout.row()
-            row.template_list("NFIELD_UL_layers", "", st, "layers", st, "active_layer_index", rows=2)
-            row.column(align=True).operator("nfield.layer_release", icon="REMOVE", text="")
+            _list_with_remove(layout, "NFIELD_UL_layers", st, "layers", "active_layer_index", 2,
+                              "nfield.layer_release")
 
 
 class NFIELD_PT_display(_NFieldPanel, bpy.types.Panel):
@@ -226,12 +234,4 @@ classes = (
     NFIELD_PT_applications,
 )
 
-
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -224,14 +224,15 @@ classes = (
 )
 
 
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
 def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
+    _register_classes()
     bpy.types.Object.nfield = PointerProperty(type=NFieldSettings)
 
 
 def unregister():
     if hasattr(bpy.types.Object, "nfield"):
         del bpy.types.Object.nfield
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

@@ -83,9 +83,10 @@ def mesh_arrays(obj) -> MeshArrays:
     topo = hashlib.blake2b(digest_size=8)
     topo.update(np.array([nv, ne, np_, nl], dtype=np.int64).tobytes())
     topo.update(corner_vert.tobytes())
+    prefix_key = (nv, ne, np_, nl, topo.copy().hexdigest())  # everything but the polygon starts
     cached = _topology_cache.get(obj.name)
     loop_start = None
-    if cached is not None and cached[0] == (nv, ne, np_, nl, topo.copy().hexdigest()):
+    if cached is not None and cached[0] == prefix_key:
         loop_start = cached[3]
     if loop_start is None:
         loop_start = np.empty(np_, dtype=np.int32)
@@ -103,8 +104,7 @@ def mesh_arrays(obj) -> MeshArrays:
         tp = np.empty(nt, dtype=np.int32)
         me.loop_triangles.foreach_get("polygon_index", tp)
         tri_poly = tp.astype(np.int64)
-    _topology_cache[obj.name] = ((nv, ne, np_, nl, _prefix_hash(nv, ne, np_, nl, corner_vert)),
-                                 tris, tri_poly, loop_start, topology)
+    _topology_cache[obj.name] = (prefix_key, tris, tri_poly, loop_start, topology)
     geo = hashlib.blake2b(verts32.tobytes(), digest_size=8).hexdigest()
     verts = verts32.reshape(nv, 3).astype(np.float64)
     sig = f"{nv}/{ne}/{np_}/{nl}:{topology}:{geo}"
@@ -115,13 +115,6 @@ def mesh_arrays(obj) -> MeshArrays:
         centers, normals = _polygon_centers_normals(verts, corner_vert, loop_start)
         _geometry_cache[obj.name] = (sig, centers, normals)
     return MeshArrays(verts, tris, tri_poly, np_, centers, normals, sig, topology)
-
-
-def _prefix_hash(nv, ne, np_, nl, corner_vert) -> str:
-    h = hashlib.blake2b(digest_size=8)
-    h.update(np.array([nv, ne, np_, nl], dtype=np.int64).tobytes())
-    h.update(corner_vert.tobytes())
-    return h.hexdigest()
 
 
 def _polygon_centers_normals(verts: np.ndarray, corner_vert: np.ndarray, loop_start: np.ndarray):
@@ -278,18 +271,14 @@ class PlainSession:
         self._dirs[int(face)] = VectorConstraint(int(face), tuple(v))
 
     def remove(self, face):
-        if int(face) not in self._dirs:
-            raise ValueError(f"face {face} has no constraint")
-        del self._dirs[int(face)]
+        _drop_constraint(self._dirs, face, f"face {face} has no constraint")
 
     def set_singularity(self, vertex, index):
         from ..core import SingularityConstraint
         self._sings[int(vertex)] = SingularityConstraint(int(vertex), float(index))
 
     def remove_singularity(self, vertex):
-        if int(vertex) not in self._sings:
-            raise ValueError(f"vertex {vertex} has no singularity")
-        del self._sings[int(vertex)]
+        _drop_constraint(self._sings, vertex, f"vertex {vertex} has no singularity")
 
     @property
     def constraints(self):
@@ -309,6 +298,13 @@ class PlainSession:
         raise NFieldError("region editing needs nfield.core.DesignSession, which this nfield.core lacks")
 
     begin_region = commit_region = cancel_region = release_layer = _no_regions
+
+
+def _drop_constraint(table: dict, key, missing: str) -> None:
+    """Delete table[int(key)]; ValueError(missing) if absent, as DesignSession raises."""
+    if int(key) not in table:
+        raise ValueError(missing)
+    del table[int(key)]
 
 
 def design_session_class():

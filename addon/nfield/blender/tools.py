@@ -164,6 +164,7 @@ def _face_direction(entry, face):
 
 
 def _set_status(context, text):
+    """Show `text` in the 3D view's header and the status bar (None: back to Blender's default)."""
     if context.area is not None:
         context.area.header_text_set(text)
     ws = getattr(context, "workspace", None)
@@ -172,53 +173,96 @@ def _set_status(context, text):
 
 
 def _clear_status(context):
-    if context.area is not None:
-        context.area.header_text_set(None)
-    ws = getattr(context, "workspace", None)
-    if ws is not None:
-        ws.status_text_set(None)
+    _set_status(context, None)  # None restores Blender's own header / status bar
 
 
 def _constraint_item(obj, face):
     return next((c for c in obj.nfield.constraints if c.face == face and not c.stale), None)
 
 
-# ============================================================================================ constraint tool
-class NFIELD_OT_constraint_tool(Operator):
-    """Click a face and drag to aim its direction constraint (the field follows live)"""
+def _constraint_under_cursor(context, obj, mouse, hit):
+    """Face of the constraint the user points at: the constrained face under the cursor (`hit`, from
+    _ray_cast), else the arrow nearest on screen (its face may be small or hidden behind the arrow); or None."""
+    if hit is not None and _constraint_item(obj, hit[2]) is not None:
+        return hit[2]
+    items = [c for c in obj.nfield.constraints if not c.stale and c.face < len(obj.data.polygons)]
+    i = _nearest_on_screen(context, obj, [obj.data.polygons[c.face].center for c in items], mouse, PICK_PIXELS)
+    return None if i is None else items[i].face
 
-    bl_idname = "nfield.constraint_tool"
-    bl_label = "Aim Field Constraint"
+
+def _pinned_singularity_under_cursor(context, obj, mouse):
+    """Vertex of the pinned singularity nearest on screen to `mouse`, or None."""
+    me = obj.data
+    pinned = [s for s in obj.nfield.singularities if not s.stale and s.vertex < len(me.vertices)]
+    i = _nearest_on_screen(context, obj, [me.vertices[s.vertex].co for s in pinned], mouse, PICK_PIXELS)
+    return None if i is None else pinned[i].vertex
+
+
+def _remove_design_item(op, context, remove, key, done_message):
+    """`remove(obj, key)` (an api removal), then re-solve (Live Update) or just redraw the overlay; reports
+    like the other tool operators."""
+    from . import api
+
+    obj = context.active_object
+    try:
+        remove(obj, key)
+        if obj.nfield.live_update:
+            api.solve(obj)
+        else:
+            api.notify_overlay(obj)
+    except ValueError as exc:
+        op.report({"ERROR"}, str(exc))
+        return {"CANCELLED"}
+    op.report({"INFO"}, done_message)
+    return {"FINISHED"}
+
+
+class _ModalViewportTool:
+    """Mixin of the two modal tools: poll for a 3D view with a mesh in object mode; the solver session."""
+
     bl_options = {"REGISTER", "UNDO"}
 
     @classmethod
     def poll(cls, context):
         return _poll_object(context) and context.area is not None and context.area.type == "VIEW_3D"
 
+    def _open_session(self, obj) -> bool:
+        """Get (api, entry, session) with a solved field; False (reported) if the design cannot be solved."""
+        try:
+            self._api, self._entry, self._session = _session(obj)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return False
+        return True
+
+    def _write_attributes(self, obj):
+        if obj.nfield.write_attributes and self._entry.result is not None:
+            try:
+                self._api.write_attributes(obj, self._entry.result)
+            except ValueError as exc:
+                self.report({"WARNING"}, str(exc))
+
+
+# ============================================================================================ constraint tool
+class NFIELD_OT_constraint_tool(_ModalViewportTool, Operator):
+    """Click a face and drag to aim its direction constraint (the field follows live)"""
+
+    bl_idname = "nfield.constraint_tool"
+    bl_label = "Aim Field Constraint"
+
     def invoke(self, context, event):
         obj = context.active_object
         mouse = (event.mouse_region_x, event.mouse_region_y)
         hit = _ray_cast(context, obj, mouse)
-        face = None
-        if hit is not None and _constraint_item(obj, hit[2]) is not None:
-            face = hit[2]
-        else:  # an arrow near the cursor (its face may be small or hidden behind the arrow)
-            items = [c for c in obj.nfield.constraints if not c.stale and c.face < len(obj.data.polygons)]
-            i = _nearest_on_screen(context, obj, [obj.data.polygons[c.face].center for c in items], mouse,
-                                   PICK_PIXELS)
-            if i is not None:
-                face = items[i].face
-            elif hit is not None:
-                face = hit[2]
+        face = _constraint_under_cursor(context, obj, mouse, hit)
+        if face is None and hit is not None:
+            face = hit[2]  # an unconstrained face: a new constraint
         last_press.clear()
         last_press.update(tool="constraint", mouse=list(mouse), object=obj.name, face=face,
                           hit_face=None if hit is None else hit[2])
         if face is None:
             return {"PASS_THROUGH"}
-        try:
-            self._api, self._entry, self._session = _session(obj)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
+        if not self._open_session(obj):
             return {"CANCELLED"}
         poly = obj.data.polygons[face]
         self._obj_name = obj.name
@@ -309,13 +353,6 @@ class NFIELD_OT_constraint_tool(Operator):
             return self._finish(context, cancelled=True)
         return {"RUNNING_MODAL"}
 
-    def _write_attributes(self, obj):
-        if obj.nfield.write_attributes and self._entry.result is not None:
-            try:
-                self._api.write_attributes(obj, self._entry.result)
-            except ValueError as exc:
-                self.report({"WARNING"}, str(exc))
-
     def _restore(self, obj):
         face = self._face
         st = obj.nfield
@@ -374,47 +411,26 @@ class NFIELD_OT_constraint_delete(Operator):
     def invoke(self, context, event):
         obj = context.active_object
         mouse = (event.mouse_region_x, event.mouse_region_y)
-        items = [c for c in obj.nfield.constraints if not c.stale and c.face < len(obj.data.polygons)]
-        hit = _ray_cast(context, obj, mouse)
-        if hit is not None and _constraint_item(obj, hit[2]) is not None:
-            self.face = hit[2]
-        else:
-            i = _nearest_on_screen(context, obj, [obj.data.polygons[c.face].center for c in items], mouse,
-                                   PICK_PIXELS)
-            if i is None:
-                self.report({"INFO"}, "No constraint under the cursor")
-                return {"CANCELLED"}
-            self.face = items[i].face
+        face = _constraint_under_cursor(context, obj, mouse, _ray_cast(context, obj, mouse))
+        if face is None:
+            self.report({"INFO"}, "No constraint under the cursor")
+            return {"CANCELLED"}
+        self.face = face
         return self.execute(context)
 
     def execute(self, context):
         from . import api
 
-        obj = context.active_object
-        try:
-            api.remove_constraint(obj, self.face)
-            if obj.nfield.live_update:
-                api.solve(obj)
-            else:
-                api.notify_overlay(obj)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Removed the constraint on face {self.face}")
-        return {"FINISHED"}
+        return _remove_design_item(self, context, api.remove_constraint, self.face,
+                                   f"Removed the constraint on face {self.face}")
 
 
 # ============================================================================================ singularity tool
-class NFIELD_OT_singularity_tool(Operator):
+class NFIELD_OT_singularity_tool(_ModalViewportTool, Operator):
     """Click near a vertex and pick a singularity index (wheel / +- / number keys)"""
 
     bl_idname = "nfield.singularity_tool"
     bl_label = "Pin Field Singularity"
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        return _poll_object(context) and context.area is not None and context.area.type == "VIEW_3D"
 
     def invoke(self, context, event):
         obj = context.active_object
@@ -422,10 +438,7 @@ class NFIELD_OT_singularity_tool(Operator):
         vertex = self._pick_vertex(context, obj, mouse)
         if vertex is None:
             return {"PASS_THROUGH"}
-        try:
-            self._api, self._entry, self._session = _session(obj)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
+        if not self._open_session(obj):
             return {"CANCELLED"}
         st = obj.nfield
         self._obj_name = obj.name
@@ -444,11 +457,10 @@ class NFIELD_OT_singularity_tool(Operator):
         return {"RUNNING_MODAL"}
 
     def _pick_vertex(self, context, obj, mouse):
+        pinned = _pinned_singularity_under_cursor(context, obj, mouse)
+        if pinned is not None:
+            return pinned
         me = obj.data
-        pinned = [s for s in obj.nfield.singularities if not s.stale and s.vertex < len(me.vertices)]
-        i = _nearest_on_screen(context, obj, [me.vertices[s.vertex].co for s in pinned], mouse, PICK_PIXELS)
-        if i is not None:
-            return pinned[i].vertex
         hit = _ray_cast(context, obj, mouse)
         if hit is None:
             return None
@@ -563,11 +575,7 @@ class NFIELD_OT_singularity_tool(Operator):
                 if not self._changed:
                     self._restore(obj)
                     return self._finish(context, True)
-                try:
-                    if obj.nfield.write_attributes and self._entry.result is not None:
-                        self._api.write_attributes(obj, self._entry.result)
-                except ValueError as exc:
-                    self.report({"WARNING"}, str(exc))
+                self._write_attributes(obj)
                 return self._finish(context, False)
             elif t in {"ESC", "RIGHTMOUSE"}:
                 self._restore(obj)
@@ -645,32 +653,19 @@ class NFIELD_OT_singularity_delete(Operator):
         return _poll_object(context) and len(context.active_object.nfield.singularities) > 0
 
     def invoke(self, context, event):
-        obj = context.active_object
-        me = obj.data
-        pinned = [s for s in obj.nfield.singularities if not s.stale and s.vertex < len(me.vertices)]
-        i = _nearest_on_screen(context, obj, [me.vertices[s.vertex].co for s in pinned],
-                               (event.mouse_region_x, event.mouse_region_y), PICK_PIXELS)
-        if i is None:
+        vertex = _pinned_singularity_under_cursor(context, context.active_object,
+                                                  (event.mouse_region_x, event.mouse_region_y))
+        if vertex is None:
             self.report({"INFO"}, "No pinned singularity under the cursor")
             return {"CANCELLED"}
-        self.vertex = pinned[i].vertex
+        self.vertex = vertex
         return self.execute(context)
 
     def execute(self, context):
         from . import api
 
-        obj = context.active_object
-        try:
-            api.remove_singularity(obj, self.vertex)
-            if obj.nfield.live_update:
-                api.solve(obj)
-            else:
-                api.notify_overlay(obj)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Removed the singularity at vertex {self.vertex}")
-        return {"FINISHED"}
+        return _remove_design_item(self, context, api.remove_singularity, self.vertex,
+                                   f"Removed the singularity at vertex {self.vertex}")
 
 
 # ============================================================================================ toolbar tools
