@@ -167,6 +167,9 @@ def test_constraint_drag_in_real_window(tmp_path):
     (ARTIFACTS / "blender_window.json").write_text(json.dumps(result, indent=1))
     print(f"screenshot: {shot}")
 
+    # The press must land where aimed (within a few pixels: X event delivery jitter) and the constraint
+    # must sit on the face under the press as Blender's own ray cast sees it.
+    assert result["press_offset_px"] is not None and result["press_offset_px"] < 25, result.get("tool_press")
     face = result["face"]
     live = [c for c in result["constraints"] if not c["stale"]]
     assert [c["face"] for c in live] == [face], result["constraints"]

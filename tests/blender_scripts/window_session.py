@@ -172,11 +172,25 @@ def report():
         st = obj.nfield
         cons = [{"face": c.face, "direction": list(c.direction), "kind": c.kind, "stale": c.stale}
                 for c in st.constraints]
-        face = STATE["face"]
-        item = next((c for c in st.constraints if c.face == face), None)
-        res = {"face": face, "constraints": cons, "press": STATE["press"], "target": STATE["target"],
-               "n": st.n, "undo_steps": None}
         mw = obj.matrix_world
+        # The clicked face: where Blender actually received the press (X events can land a few pixels
+        # from where xdotool aimed), found with Blender's own ray cast, independently of the tool's code.
+        from nfield.blender import tools
+
+        face = STATE["face"]
+        press_offset = None
+        mouse = tools.last_press.get("mouse")
+        if mouse:
+            press_offset = math.hypot(mouse[0] - STATE["press"][0], mouse[1] - STATE["press"][1])
+            origin = view3d_utils.region_2d_to_origin_3d(region, rv3d, Vector(mouse))
+            ray = view3d_utils.region_2d_to_vector_3d(region, rv3d, Vector(mouse))
+            inv = mw.inverted()
+            hit, _loc, _nrm, index = obj.ray_cast(inv @ origin, (inv.to_3x3() @ ray).normalized())
+            if hit:
+                face = index
+        item = next((c for c in st.constraints if c.face == face), None)
+        res = {"face": face, "aimed_face": STATE["face"], "press_offset_px": press_offset, "constraints": cons,
+               "press": STATE["press"], "target": STATE["target"], "n": st.n, "undo_steps": None}
         if item is not None:
             # the stored (object-space) direction seen on screen, independently of the tool's math:
             c = obj.data.polygons[face].center
@@ -195,8 +209,6 @@ def report():
         from nfield.blender import overlay
 
         res["overlay_stats"] = overlay.last_build_stats()
-        from nfield.blender import tools
-
         res["tool_press"] = dict(tools.last_press)
         shot = os.path.join(WORKDIR, "window.png")
         with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
