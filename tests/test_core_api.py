@@ -83,14 +83,6 @@ def test_bl_info_and_lazy_imports():
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr
 
 
-@pytest.mark.skipif((ADDON / "nfield" / "blender").exists() or (ADDON / "nfield" / "blender.py").exists(),
-                    reason="the Blender layer exists")
-def test_register_without_blender_layer_is_a_clear_import_error():
-    with pytest.raises(ImportError, match="Blender layer"):
-        nfield.register()
-    nfield.unregister()  # nothing registered: no error
-
-
 # ---------------------------------------------------------------------------------------- constraints
 def test_constraint_dataclasses():
     c = DirectionConstraint(3, [1, 0, 0])
