@@ -76,40 +76,24 @@ void ReducedSolver::check_face(int face) const {
 
 void ReducedSolver::set_direction_constraint(int face, Complex d) {
   check_face(face);
-  const double len = std::abs(d);
-  if (!std::isfinite(len) || len <= 1e-12)
-    throw ConstraintError("direction constraint on face " + std::to_string(face) + " has a zero or invalid direction");
-  constraints_.faces[face] = {ConstraintSet::Kind::Direction, d / len};
+  constraints_.set_direction(face, d);
 }
 
 void ReducedSolver::set_vector_constraint(int face, Complex value) {
   check_face(face);
-  if (!std::isfinite(std::abs(value)))
-    throw ConstraintError("vector constraint on face " + std::to_string(face) + " is not finite");
-  constraints_.faces[face] = {ConstraintSet::Kind::Vector, value};
+  constraints_.set_vector(face, value);
 }
 
-void ReducedSolver::remove_constraint(int face) {
-  if (!constraints_.faces.erase(face))
-    throw ConstraintError("face " + std::to_string(face) + " has no constraint to remove");
-}
+void ReducedSolver::remove_constraint(int face) { constraints_.remove_face(face); }
 
 void ReducedSolver::set_singularity(int vertex, int numerator) {
   auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
-  constraints_.singularities[vertex] = numerator;
-  singularity_rows_[vertex] = std::move(rows);
+  constraints_.set_singularity(vertex, numerator, std::move(rows));
 }
 
-void ReducedSolver::remove_singularity(int vertex) {
-  if (!constraints_.singularities.erase(vertex))
-    throw ConstraintError("vertex " + std::to_string(vertex) + " has no singularity constraint to remove");
-  singularity_rows_.erase(vertex);
-}
+void ReducedSolver::remove_singularity(int vertex) { constraints_.remove_singularity(vertex); }
 
-void ReducedSolver::clear_constraints() {
-  constraints_ = ConstraintSet{};
-  singularity_rows_.clear();
-}
+void ReducedSolver::clear_constraints() { constraints_ = ConstraintSet{}; }
 
 const ComplexVector& ReducedSolver::basis_row(int face) {
   auto it = rows_.find(face);
@@ -130,25 +114,6 @@ const ComplexVector& ReducedSolver::basis_row(int face) {
 
 Complex ReducedSolver::value_at(const ComplexVector& x, int face) {
   return basis_row(face).dot(x);  // sum conj(conj U) x = (U x)_f
-}
-
-std::vector<ConstraintRow> ReducedSolver::build_rows(const std::vector<int>& pinned, double pin_magnitude) const {
-  std::vector<ConstraintRow> rows;
-  for (const auto& [face, c] : constraints_.faces) {
-    const bool pin = std::binary_search(pinned.begin(), pinned.end(), face);
-    if (c.kind == ConstraintSet::Kind::Direction && !pin) {
-      ConstraintRow r;
-      r.terms.emplace_back(face, Complex(0, 1) * c.value);  // <u, J d> = Re(conj(i d) u)
-      rows.push_back(std::move(r));
-    } else {
-      const Complex value = c.kind == ConstraintSet::Kind::Vector ? c.value : pin_magnitude * c.value;
-      auto [re, im] = complex_equation_rows({{face, Complex(1, 0)}}, value);
-      rows.push_back(std::move(re));
-      rows.push_back(std::move(im));
-    }
-  }
-  for (const auto& [vertex, rs] : singularity_rows_) rows.insert(rows.end(), rs.begin(), rs.end());
-  return rows;
 }
 
 ComplexVector ReducedSolver::schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y) {
@@ -221,7 +186,7 @@ ComplexVector ReducedSolver::solve_coefficients() {
     std::vector<int> pinned;
     double pin_magnitude = 0;
     for (int iteration = 0;; ++iteration) {
-      const ComplexVector x = schur_solve(build_rows(pinned, pin_magnitude), y);
+      const ComplexVector x = schur_solve(constraints_.rows(pinned, pin_magnitude), y);
       std::vector<int> wrong;
       std::vector<double> good;
       double scale = 0;

@@ -133,23 +133,15 @@ void ExactSolver::check_face(int face) const {
 
 void ExactSolver::set_direction_constraint(int face, Complex d) {
   check_face(face);
-  const double len = std::abs(d);
-  if (!std::isfinite(len) || len <= 1e-12)
-    throw ConstraintError("direction constraint on face " + std::to_string(face) + " has a zero or invalid direction");
-  constraints_.faces[face] = {ConstraintSet::Kind::Direction, d / len};
+  constraints_.set_direction(face, d);
 }
 
 void ExactSolver::set_vector_constraint(int face, Complex value) {
   check_face(face);
-  if (!std::isfinite(std::abs(value)))
-    throw ConstraintError("vector constraint on face " + std::to_string(face) + " is not finite");
-  constraints_.faces[face] = {ConstraintSet::Kind::Vector, value};
+  constraints_.set_vector(face, value);
 }
 
-void ExactSolver::remove_constraint(int face) {
-  if (!constraints_.faces.erase(face))
-    throw ConstraintError("face " + std::to_string(face) + " has no constraint to remove");
-}
+void ExactSolver::remove_constraint(int face) { constraints_.remove_face(face); }
 
 void ExactSolver::set_singularity(int vertex, int numerator) {
   auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
@@ -158,20 +150,12 @@ void ExactSolver::set_singularity(int vertex, int numerator) {
       if (frozen_index_.count(t.first))
         throw ConstraintError("singularity at vertex " + std::to_string(vertex) +
                               " touches a frozen face (outside the region being edited)");
-  constraints_.singularities[vertex] = numerator;
-  singularity_rows_[vertex] = std::move(rows);
+  constraints_.set_singularity(vertex, numerator, std::move(rows));
 }
 
-void ExactSolver::remove_singularity(int vertex) {
-  if (!constraints_.singularities.erase(vertex))
-    throw ConstraintError("vertex " + std::to_string(vertex) + " has no singularity constraint to remove");
-  singularity_rows_.erase(vertex);
-}
+void ExactSolver::remove_singularity(int vertex) { constraints_.remove_singularity(vertex); }
 
-void ExactSolver::clear_constraints() {
-  constraints_ = ConstraintSet{};
-  singularity_rows_.clear();
-}
+void ExactSolver::clear_constraints() { constraints_ = ConstraintSet{}; }
 
 void ExactSolver::ensure_columns(const std::vector<int>& faces) {
   std::vector<int> missing;
@@ -186,25 +170,6 @@ void ExactSolver::ensure_columns(const std::vector<int>& faces) {
   if (residual.cwiseAbs().maxCoeff() > 1e-10) G += factor_.solve(residual);  // iterative refinement
   if (!G.allFinite()) throw SolverError("back-substitution produced non-finite values");
   for (size_t j = 0; j < missing.size(); ++j) columns_[missing[j]] = G.col(j);
-}
-
-std::vector<ConstraintRow> ExactSolver::build_rows(const std::vector<int>& pinned, double pin_magnitude) const {
-  std::vector<ConstraintRow> rows;
-  for (const auto& [face, c] : constraints_.faces) {
-    const bool pin = std::binary_search(pinned.begin(), pinned.end(), face);
-    if (c.kind == ConstraintSet::Kind::Direction && !pin) {
-      ConstraintRow r;
-      r.terms.emplace_back(face, Complex(0, 1) * c.value);  // <u, J d> = Re(conj(i d) u)
-      rows.push_back(std::move(r));
-    } else {
-      const Complex value = c.kind == ConstraintSet::Kind::Vector ? c.value : pin_magnitude * c.value;
-      auto [re, im] = complex_equation_rows({{face, Complex(1, 0)}}, value);
-      rows.push_back(std::move(re));
-      rows.push_back(std::move(im));
-    }
-  }
-  for (const auto& [vertex, rs] : singularity_rows_) rows.insert(rows.end(), rs.begin(), rs.end());
-  return rows;
 }
 
 Complex ExactSolver::Response::at(const ExactSolver& s, int face) const {
@@ -268,7 +233,7 @@ ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>&
           if (std::abs(Q(r, i)) > 0.1) {
             const int f = rows[r].terms.front().first;
             std::string name = "face " + std::to_string(f);
-            for (const auto& [vertex, rs] : singularity_rows_)
+            for (const auto& [vertex, rs] : constraints_.singularity_rows)
               for (const auto& row : rs)
                 if (row.terms.front().first == f) name = "singularity at vertex " + std::to_string(vertex);
             names.insert(name);
@@ -304,7 +269,7 @@ ComplexVector ExactSolver::solve() {
 
   std::vector<int> faces;
   for (const auto& [f, c] : constraints_.faces) faces.push_back(f);
-  for (const auto& [v, rs] : singularity_rows_)
+  for (const auto& [v, rs] : constraints_.singularity_rows)
     for (const auto& r : rs)
       for (const auto& t : r.terms) faces.push_back(t.first);
   std::sort(faces.begin(), faces.end());
@@ -330,7 +295,7 @@ ComplexVector ExactSolver::solve() {
       has_data[comp] = true;
     }
   }
-  for (const auto& [v, rs] : singularity_rows_) has_rows[mesh.face_component()[rs.front().terms.front().first]] = true;
+  for (const auto& [v, rs] : constraints_.singularity_rows) has_rows[mesh.face_component()[rs.front().terms.front().first]] = true;
 
   // Components whose only constraints are homogeneous: seed with the smoothest field (inverse iteration).
   std::vector<bool> homogeneous(ncomp, false), empty(ncomp, false);
@@ -357,7 +322,7 @@ ComplexVector ExactSolver::solve() {
     std::vector<int> pinned;
     double pin_magnitude = 0;
     for (int iteration = 0;; ++iteration) {
-      const Response w = schur_solve(build_rows(pinned, pin_magnitude), response);
+      const Response w = schur_solve(constraints_.rows(pinned, pin_magnitude), response);
       // Orientation check at the direction constraints; the scale is the largest constrained value.
       std::vector<std::pair<int, double>> along;
       double scale = 0;

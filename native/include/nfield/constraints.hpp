@@ -34,8 +34,21 @@ struct ConstraintSet {
   };
   std::map<int, FaceConstraint> faces;  ///< face -> constraint
   std::map<int, int> singularities;     ///< vertex -> index numerator N (index N/n)
+  std::map<int, std::vector<ConstraintRow>> singularity_rows;  ///< vertex -> its ring rows
 
   size_t size() const { return faces.size() + singularities.size(); }
+
+  /// Editing shared by the exact and the reduced solver (the face itself is validated by the solver).
+  /// ConstraintError for a zero/non-finite direction or value, or removing what is not there.
+  void set_direction(int face, Complex d);
+  void set_vector(int face, Complex value);
+  void remove_face(int face);
+  void set_singularity(int vertex, int numerator, std::vector<ConstraintRow> rows);
+  void remove_singularity(int vertex);
+
+  /// All rows: one per direction constraint, two per vector constraint, the singularity rings' rows.
+  /// Direction constraints on `pinned` faces (sorted) become vector constraints of value pin_magnitude * d.
+  std::vector<ConstraintRow> rows(const std::vector<int>& pinned, double pin_magnitude) const;
 };
 
 }  // namespace nfield

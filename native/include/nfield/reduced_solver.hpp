@@ -93,7 +93,6 @@ class ReducedSolver {
   /// conj(U[f, :])^T = U^H e_f (cached).
   const ComplexVector& basis_row(int face);
   Complex value_at(const ComplexVector& x, int face);  ///< (U x)_f
-  std::vector<ConstraintRow> build_rows(const std::vector<int>& pinned, double pin_magnitude) const;
   ComplexVector schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y);
 
   std::shared_ptr<const FieldOperators> ops_;
@@ -108,7 +107,6 @@ class ReducedSolver {
   ComplexVector projected_;      ///< U^H M u' (without the rhs scale)
   double spike_ = 100.0;
   ConstraintSet constraints_;
-  std::unordered_map<int, std::vector<ConstraintRow>> singularity_rows_;
   std::unordered_map<int, ComplexVector> rows_;  ///< face -> conj(U[f, :])^T
   std::vector<int> sign_fixed_;
   double constraint_residual_ = 0;

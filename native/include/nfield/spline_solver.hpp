@@ -103,7 +103,6 @@ class ExactSolver {
  private:
   void check_face(int face) const;
   void ensure_columns(const std::vector<int>& faces);
-  std::vector<ConstraintRow> build_rows(const std::vector<int>& pinned, double pin_magnitude) const;
   /// A field kept as base + sum_f coefficient_f G_f, so that constraint updates touch only a few
   /// values and the full vector is assembled once, in a single pass over the cached columns.
   struct Response {
@@ -132,7 +131,6 @@ class ExactSolver {
   ComplexVector base_response_;  ///< V^-1 b for the unmodified alignment (per unknown)
   std::unordered_map<int, ComplexVector> columns_;  ///< face -> G_f = V^-1 e_f (per unknown)
   ConstraintSet constraints_;
-  std::unordered_map<int, std::vector<ConstraintRow>> singularity_rows_;
   std::vector<int> sign_fixed_;
   std::vector<bool> component_has_alignment_;
   ComplexVector smoothest_;  ///< lazily computed per-face smoothest field (component fill)
