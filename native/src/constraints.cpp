@@ -49,6 +49,10 @@ void ConstraintSet::remove_singularity(int vertex) {
   singularity_rows.erase(vertex);
 }
 
+void OrientationPins::throw_unorientable() {
+  throw SolverError("could not orient every direction constraint along +d");
+}
+
 std::vector<ConstraintRow> ConstraintSet::rows(const std::vector<int>& pinned, double pin_magnitude) const {
   std::vector<ConstraintRow> out;
   for (const auto& [face, c] : faces) {

@@ -163,7 +163,7 @@ ComplexVector ReducedSolver::solve_coefficients() {
   const FieldOperators& o = *ops_;
   const TriangleMesh& mesh = o.mesh();
   sign_fixed_.clear();
-  pin_magnitude_ = 0;
+  pins_ = OrientationPins{};
   const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
   // b_U = U^H b with the +d safeguard u'_f = s_f d_f at direction constraints (O(k) per face).
   ComplexVector bU = rhs_scale * projected_;
@@ -183,39 +183,13 @@ ComplexVector ReducedSolver::solve_coefficients() {
 
   auto solve_with_pins = [&](const ComplexVector& b) {
     const ComplexVector y = inv_diag_.cast<Complex>().cwiseProduct(b);
-    std::vector<int> pinned;
-    double pin_magnitude = 0;
-    for (int iteration = 0;; ++iteration) {
-      const ComplexVector x = schur_solve(constraints_.rows(pinned, pin_magnitude), y);
-      std::vector<int> wrong;
-      std::vector<double> good;
-      double scale = 0;
-      std::vector<std::pair<int, double>> along;
-      for (const auto& [f, c] : constraints_.faces) {
-        const Complex value = value_at(x, f);
-        scale = std::max(scale, std::abs(value));
-        if (c.kind == ConstraintSet::Kind::Direction && !std::binary_search(pinned.begin(), pinned.end(), f))
-          along.emplace_back(f, (std::conj(c.value) * value).real());
-      }
-      for (const auto& [f, t] : along) (t > 1e-8 * scale ? good.push_back(t) : wrong.push_back(f));
-      if (wrong.empty()) {
-        pin_magnitude_ = pin_magnitude;
-        return x;
-      }
-      if (iteration > static_cast<int>(constraints_.faces.size()))
-        throw SolverError("could not orient every direction constraint along +d");
-      if (pinned.empty()) {
-        if (!good.empty()) {
-          std::nth_element(good.begin(), good.begin() + good.size() / 2, good.end());
-          pin_magnitude = good[good.size() / 2];
-        } else {
-          pin_magnitude = scale;
-        }
-        if (!(pin_magnitude > 0)) pin_magnitude = 1.0;
-      }
-      pinned.insert(pinned.end(), wrong.begin(), wrong.end());
-      std::sort(pinned.begin(), pinned.end());
-      sign_fixed_ = pinned;
+    OrientationPins pins;
+    for (;;) {
+      const ComplexVector x = schur_solve(constraints_.rows(pins.faces, pins.magnitude), y);
+      if (!pins.update(constraints_, [&](int f) { return value_at(x, f); })) continue;
+      sign_fixed_ = pins.faces;
+      pins_ = pins;
+      return x;
     }
   };
 
@@ -254,15 +228,7 @@ ComplexVector ReducedSolver::solve() {
   const ComplexVector x = solve_coefficients();
   ComplexVector field = reconstruct(x);
   // Snap constrained faces onto their constraint (as the exact solver does).
-  for (const auto& [f, c] : constraints_.faces) {
-    Complex& z = field[f];
-    if (c.kind == ConstraintSet::Kind::Vector)
-      z = c.value;
-    else if (std::binary_search(sign_fixed_.begin(), sign_fixed_.end(), f))
-      z = pin_magnitude_ * c.value;
-    else
-      z = (std::conj(c.value) * z).real() * c.value;
-  }
+  for (const auto& [f, c] : constraints_.faces) field[f] = pins_.snapped(f, c, field[f]);
   return field;
 }
 

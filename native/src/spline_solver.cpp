@@ -319,57 +319,19 @@ ComplexVector ExactSolver::solve() {
   };
 
   auto solve_with_pins = [&](const Response& response) {
-    std::vector<int> pinned;
-    double pin_magnitude = 0;
-    for (int iteration = 0;; ++iteration) {
-      const Response w = schur_solve(constraints_.rows(pinned, pin_magnitude), response);
-      // Orientation check at the direction constraints; the scale is the largest constrained value.
-      std::vector<std::pair<int, double>> along;
-      double scale = 0;
+    OrientationPins pins;
+    for (;;) {
+      const Response w = schur_solve(constraints_.rows(pins.faces, pins.magnitude), response);
+      if (!pins.update(constraints_, [&](int f) { return w.at(*this, f); })) continue;
+      sign_fixed_ = pins.faces;
+      ComplexVector field = w.assemble(*this);
+      // Snap constrained faces onto their constraint: removes the rounding of the column combination
+      // (relative 1e-12 of the largest term), so constraints hold to the last bit.
       for (const auto& [f, c] : constraints_.faces) {
-        const Complex value = w.at(*this, f);
-        scale = std::max(scale, std::abs(value));
-        if (c.kind == ConstraintSet::Kind::Direction && !std::binary_search(pinned.begin(), pinned.end(), f))
-          along.emplace_back(f, (std::conj(c.value) * value).real());
+        Complex& z = field[unknown_of_face_[f]];
+        z = pins.snapped(f, c, z);
       }
-      std::vector<int> wrong;
-      std::vector<double> good;
-      for (const auto& [f, t] : along) {
-        if (t > 1e-8 * scale)
-          good.push_back(t);
-        else
-          wrong.push_back(f);
-      }
-      if (wrong.empty()) {
-        ComplexVector field = w.assemble(*this);
-        // Snap constrained faces onto their constraint: removes the rounding of the column combination
-        // (relative 1e-12 of the largest term), so constraints hold to the last bit.
-        for (const auto& [f, c] : constraints_.faces) {
-          Complex& z = field[unknown_of_face_[f]];
-          if (c.kind == ConstraintSet::Kind::Vector)
-            z = c.value;
-          else if (std::binary_search(pinned.begin(), pinned.end(), f))
-            z = pin_magnitude * c.value;
-          else
-            z = (std::conj(c.value) * z).real() * c.value;
-        }
-        return field;
-      }
-      if (iteration > static_cast<int>(constraints_.faces.size()))
-        throw SolverError("could not orient every direction constraint along +d");
-      if (pinned.empty()) {
-        // Pin magnitude: the median along-d magnitude of correctly oriented constrained faces.
-        if (!good.empty()) {
-          std::nth_element(good.begin(), good.begin() + good.size() / 2, good.end());
-          pin_magnitude = good[good.size() / 2];
-        } else {
-          pin_magnitude = scale;
-        }
-        if (!(pin_magnitude > 0)) pin_magnitude = 1.0;
-      }
-      pinned.insert(pinned.end(), wrong.begin(), wrong.end());
-      std::sort(pinned.begin(), pinned.end());
-      sign_fixed_ = pinned;
+      return field;
     }
   };
 

@@ -111,7 +111,7 @@ class ReducedSolver {
   std::vector<int> sign_fixed_;
   double constraint_residual_ = 0;
   ComplexVector last_x_;
-  double pin_magnitude_ = 0;
+  OrientationPins pins_;  ///< pinning of the last solve (snapping in solve())
 };
 
 /// U U^H M field: the M-orthogonal projection of a per-face field (size num_faces) onto the basis.
