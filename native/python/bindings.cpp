@@ -15,6 +15,8 @@
 #include "nfield/mesh.hpp"
 #include "nfield/mesh_io.hpp"
 #include "nfield/operators.hpp"
+#include "nfield/reduced_solver.hpp"
+#include "nfield/spectral_basis.hpp"
 #include "nfield/singularities.hpp"
 #include "nfield/spectrum.hpp"
 #include "nfield/spline_solver.hpp"
@@ -122,6 +124,20 @@ py::dict report_to_dict(const MeshReport& r) {
   d["euler_characteristic"] = r.euler_characteristic;
   d["summary"] = r.summary();
   return d;
+}
+
+BasisPrecision parse_precision(const std::string& precision) {
+  if (precision == "double") return BasisPrecision::Double;
+  if (precision == "single") return BasisPrecision::Single;
+  throw ParameterError("unknown basis precision '" + precision + "' (expected 'double' or 'single')");
+}
+
+const char* to_string(BasisPrecision p) { return p == BasisPrecision::Double ? "double" : "single"; }
+
+/// Alignment argument of the solvers: None (no alignment) or one complex value per face.
+ComplexVector optional_alignment(const py::object& alignment) {
+  if (alignment.is_none()) return {};
+  return to_complex_vector(alignment.cast<ComplexArray>(), "alignment");
 }
 
 SplineKind parse_kind(const std::string& kind) {
@@ -411,8 +427,7 @@ PYBIND11_MODULE(_native, m) {
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
                        const std::string& kind, double lambda_override, const py::object& progress,
                        const py::object& frozen_faces, const py::object& frozen_values) {
-             ComplexVector a;
-             if (!alignment.is_none()) a = to_complex_vector(alignment.cast<ComplexArray>(), "alignment");
+             const ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
              const ProgressCallback cb = wrap_progress(progress);
              std::vector<std::pair<int, Complex>> frozen;
@@ -457,6 +472,138 @@ PYBIND11_MODULE(_native, m) {
       .def_property_readonly("num_cached_columns", &ExactSolver::num_cached_columns)
       .def_property_readonly("num_unknowns", &ExactSolver::num_unknowns)
       .def("face_frozen", &ExactSolver::face_frozen, py::arg("face"));
+
+  // ---- spectral reduction (paper section 8): spectral_basis.hpp, reduced_solver.hpp ----
+  py::class_<SpectralBasis, std::shared_ptr<SpectralBasis>>(
+      m, "SpectralBasis", py::module_local(),
+      "The first k eigenpairs of S z = lambda M z (M-orthonormal), for reduced solves and low-pass filtering")
+      .def_static("compute", [](std::shared_ptr<FieldOperators> ops, int k, const std::string& precision,
+                                const py::object& progress, double tolerance, int slice_size) {
+        SpectralBasisOptions options;
+        options.precision = parse_precision(precision);
+        if (!(tolerance > 0 && tolerance < 1e-2)) throw ParameterError("tolerance must lie in (0, 1e-2)");
+        options.tolerance = tolerance;
+        if (slice_size < 0) throw ParameterError("slice_size must be >= 0 (0: automatic)");
+        options.slice_size = slice_size;
+        const ProgressCallback cb = wrap_progress(progress);
+        py::gil_scoped_release release;
+        return std::make_shared<SpectralBasis>(SpectralBasis::compute(*ops, k, options, cb));
+      }, py::arg("ops"), py::arg("k"), py::arg("precision") = "double", py::arg("progress") = py::none(),
+         py::arg("tolerance") = 1e-10, py::arg("slice_size") = 0,
+         "Compute the basis (expensive; GIL released; progress(fraction) returning False cancels)")
+      .def_static("load", [](const std::string& path, std::shared_ptr<FieldOperators> ops, int k,
+                             const py::object& precision) {
+        const int p = precision.is_none() ? -1 : static_cast<int>(parse_precision(precision.cast<std::string>()));
+        py::gil_scoped_release release;
+        return std::make_shared<SpectralBasis>(SpectralBasis::load(path, *ops, k, p));
+      }, py::arg("path"), py::arg("ops"), py::arg("k") = 0, py::arg("precision") = py::none(),
+         "Read a basis saved for these operators; ValueError if missing, corrupt or stale")
+      .def("save", [](const SpectralBasis& b, const std::string& path) {
+        py::gil_scoped_release release;
+        b.save(path);
+      }, py::arg("path"))
+      .def_property_readonly("size", &SpectralBasis::size)
+      .def_property_readonly("num_unknowns", &SpectralBasis::num_unknowns)
+      .def_property_readonly("precision", [](const SpectralBasis& b) { return to_string(b.precision()); })
+      .def_property_readonly("memory_bytes", &SpectralBasis::memory_bytes)
+      .def_property_readonly("mesh_hash", &SpectralBasis::mesh_hash)
+      .def_property_readonly("n", &SpectralBasis::n)
+      .def_property_readonly("weights", [](const SpectralBasis& b) { return to_string(b.weights()); })
+      .def_property_readonly("values", [](const SpectralBasis& b) { return from_eigen(b.values()); })
+      .def("vectors", [](const SpectralBasis& b, std::shared_ptr<FieldOperators> ops) {
+        if (b.num_unknowns() != ops->num_unknowns()) throw ParameterError("basis and operators do not match");
+        const int F = ops->mesh().num_faces(), k = b.size();
+        const Eigen::MatrixXcd U = b.vectors();
+        py::array_t<std::complex<double>> out({static_cast<py::ssize_t>(F), static_cast<py::ssize_t>(k)});
+        auto* d = out.mutable_data();
+        std::fill(d, d + out.size(), std::complex<double>(0, 0));
+        for (int u = 0; u < U.rows(); ++u)
+          for (int c = 0; c < k; ++c) d[static_cast<py::ssize_t>(ops->face_of_unknown(u)) * k + c] = U(u, c);
+        return out;
+      }, py::arg("ops"), "The eigenvectors per face (F, k), zero rows on excluded faces")
+      .def("truncated", &SpectralBasis::truncated, py::arg("k"))
+      .def("with_precision", [](const SpectralBasis& b, const std::string& precision) {
+        return b.with_precision(parse_precision(precision));
+      }, py::arg("precision"));
+
+  m.def("basis_cache_key", [](std::shared_ptr<FieldOperators> ops, int k, const std::string& precision) {
+    return cache_key(*ops, k, parse_precision(precision));
+  }, py::arg("ops"), py::arg("k"), py::arg("precision") = "double",
+        "File-name-safe key of a basis (mesh content hash, n, weights, size, k, precision)");
+
+  m.def("low_pass", [](std::shared_ptr<FieldOperators> ops, std::shared_ptr<SpectralBasis> basis,
+                       const ComplexArray& field) {
+    const ComplexVector z = to_complex_vector(field, "field");
+    ComplexVector out;
+    {
+      py::gil_scoped_release release;
+      out = low_pass(*ops, *basis, z);
+    }
+    return from_complex(out);
+  }, py::arg("ops"), py::arg("basis"), py::arg("field"),
+        "U U^H M field: the M-orthogonal projection of a per-face field onto the basis");
+
+  py::class_<ReducedSolver>(m, "ReducedSolver", py::module_local(),
+                            "Reduced n-field spline solver in a spectral basis (eqs. 16-18)")
+      .def(py::init([](std::shared_ptr<FieldOperators> ops, std::shared_ptr<SpectralBasis> basis, int order,
+                       double strength, const py::object& alignment, const std::string& kind,
+                       double lambda_override) {
+             const ComplexVector a = optional_alignment(alignment);
+             const SplineKind k = parse_kind(kind);
+             py::gil_scoped_release release;
+             return new ReducedSolver(ops, basis, order, strength, a, k, lambda_override);
+           }),
+           py::arg("ops"), py::arg("basis"), py::arg("order") = 2, py::arg("strength") = 1.0,
+           py::arg("alignment") = py::none(), py::arg("kind") = "direction",
+           py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN())
+      .def("set_strength", &ReducedSolver::set_strength, py::arg("strength"),
+           "Change the alignment strength live (no factorization: O(k))")
+      .def("set_lambda", &ReducedSolver::set_lambda, py::arg("lambda_"))
+      .def("set_alignment", [](ReducedSolver& s, const py::object& alignment) {
+        const ComplexVector a = optional_alignment(alignment);
+        py::gil_scoped_release release;
+        s.set_alignment(a);
+      }, py::arg("alignment"))
+      .def("set_direction_constraint", &ReducedSolver::set_direction_constraint, py::arg("face"), py::arg("d"))
+      .def("set_vector_constraint", &ReducedSolver::set_vector_constraint, py::arg("face"), py::arg("value"))
+      .def("remove_constraint", &ReducedSolver::remove_constraint, py::arg("face"))
+      .def("set_singularity", &ReducedSolver::set_singularity, py::arg("vertex"), py::arg("numerator"))
+      .def("remove_singularity", &ReducedSolver::remove_singularity, py::arg("vertex"))
+      .def("clear_constraints", &ReducedSolver::clear_constraints)
+      .def("solve_coefficients", [](ReducedSolver& s) {
+        ComplexVector x;
+        {
+          py::gil_scoped_release release;
+          x = s.solve_coefficients();
+        }
+        return from_complex(x);
+      }, "The reduced solution x (k): the field is U x (no reconstruction)")
+      .def("solve", [](ReducedSolver& s) {
+        ComplexVector w;
+        {
+          py::gil_scoped_release release;
+          w = s.solve();
+        }
+        return from_complex(w);
+      }, "The field per face (U x, constrained faces snapped)")
+      .def("reconstruct", [](const ReducedSolver& s, const ComplexArray& x) {
+        const ComplexVector c = to_complex_vector(x, "coefficients");
+        if (c.size() != s.size())
+          throw InputError("coefficients must have size k = " + std::to_string(s.size()) + ", got " +
+                           std::to_string(c.size()));
+        ComplexVector w;
+        {
+          py::gil_scoped_release release;
+          w = s.reconstruct(c);
+        }
+        return from_complex(w);
+      }, py::arg("x"))
+      .def_property_readonly("lambda_", &ReducedSolver::lambda)
+      .def_property_readonly("order", &ReducedSolver::order)
+      .def_property_readonly("size", &ReducedSolver::size)
+      .def_property_readonly("sign_fixed_faces", &ReducedSolver::sign_fixed_faces)
+      .def_property_readonly("constraint_residual", &ReducedSolver::constraint_residual)
+      .def_property_readonly("num_constraints", [](const ReducedSolver& s) { return s.constraints().size(); });
 
   // ---- BEGIN streamlines (hatching strokes; native/src/streamlines.cpp) ----
   m.def("trace_streamlines", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& z, double separation,

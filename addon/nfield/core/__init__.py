@@ -17,6 +17,7 @@ from .constraints import (
 )
 from .mesh import SUPPORTED_EXTENSIONS, Mesh
 from .session import DesignSession, Layer
+from .spectral import DEFAULT_K, BasisInfo, default_cache_dir, load_or_compute_basis, low_pass
 from .solve import ALIGN_CHOICES, WEIGHT_CHOICES, FieldResult, eigenvalues, smoothest_field, solve
 from .streamlines import Strokes, trace_streamlines
 
@@ -38,6 +39,11 @@ __all__ = [
     "solve",
     "DesignSession",
     "Layer",
+    "DEFAULT_K",
+    "BasisInfo",
+    "default_cache_dir",
+    "load_or_compute_basis",
+    "low_pass",
     "FieldResult",
     "eigenvalues",
     "smoothest_field",

@@ -17,6 +17,16 @@ warm between edits:
   follow the global solve again. Local, global and local editing can so alternate freely, which the
   paper's tool could not do.
 
+* Spectral mode (paper section 8), ``mode="spectral"``. The first k eigenfields (default 500) are computed
+  once per mesh, n and weights (minutes on a large mesh; ``precompute()`` with progress and cancellation)
+  and cached on disk (``nfield.core.spectral``), then every solve is a reduced solve of k unknowns
+  (eqs. 16-18): about a millisecond whatever the mesh size, plus the reconstruction U x. Unlike the exact
+  mode, changing the alignment *strength* costs nothing (only the diagonal Lambda changes), so it can be
+  dragged live. The result is the low-pass approximation of the exact spline (constraints still hold
+  exactly where the basis can represent them; ``constraint_residual`` says how well). Solves with frozen
+  faces (a region edit or committed layers) always use the exact solver: the reduced basis cannot hold
+  faces fixed, and the region system is small anyway.
+
 Constraints and singularities that lie on frozen faces are held by the frozen values themselves; they stay
 in the session (nothing is dropped) and act again as soon as their faces are free.
 """
@@ -33,6 +43,7 @@ import numpy as np
 from ._loader import native
 from .constraints import DirectionConstraint, SingularityConstraint, VectorConstraint
 from .mesh import Mesh
+from . import spectral
 from .solve import (
     ALIGN_CHOICES,
     FieldResult,
@@ -73,13 +84,14 @@ class DesignSession:
 
     def __init__(self, mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength: float = 1.0,
                  weights: str = "geometric", alignment_field: Any = None, mode: str = "exact",
+                 k: int = spectral.DEFAULT_K, precision: str = "double", cache_dir: Any = None,
                  progress: ProgressCallback | None = None):
+        """mode: "exact" or "spectral"; k, precision ("double" | "single"): the spectral basis;
+        cache_dir: where bases are cached (None: the default, False: no disk cache); progress(fraction):
+        called during factorizations and basis computations, returning False cancels them."""
         self.mesh = _check_mesh(mesh)
-        if mode != "exact":
-            raise ValueError(f"unknown solver mode {mode!r}: this version supports 'exact' (the spectral mode "
-                             f"is not available yet)")
-        self.mode = mode
         self.progress = progress
+        self.cache_dir = cache_dir
         self._settings: dict[str, Any] = {}
         self._dirs: dict[int, np.ndarray] = {}
         self._vecs: dict[int, np.ndarray] = {}
@@ -95,14 +107,23 @@ class DesignSession:
         self._solver = None
         self._solver_key = None
         self._in_solver: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
+        self._basis = None
+        self._basis_key = None
+        self.basis_info: spectral.BasisInfo | None = None
+        self._reduced = None
+        self._reduced_key = None
+        self._in_reduced: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
         self.field: FieldResult | None = None
         self.configure(n=n, order=order, align=align, strength=strength, weights=weights,
-                       alignment_field=alignment_field)
+                       alignment_field=alignment_field, mode=mode, k=k, precision=precision)
 
     # ------------------------------------------------------------------ settings
     def configure(self, **settings: Any) -> None:
-        """Change n, order, align, strength, weights or alignment_field; the solver refactors lazily."""
-        allowed = {"n", "order", "align", "strength", "weights", "alignment_field"}
+        """Change n, order, align, strength, weights, alignment_field, mode, k or precision.
+
+        The exact solver refactors lazily on the next solve (any change but mode, k, precision); in spectral
+        mode a strength change is free and n or weights need another basis (from the cache or computed)."""
+        allowed = {"n", "order", "align", "strength", "weights", "alignment_field", "mode", "k", "precision"}
         unknown = set(settings) - allowed
         if unknown:
             raise ValueError(f"unknown setting(s) {sorted(unknown)} (expected some of {sorted(allowed)})")
@@ -112,6 +133,10 @@ class DesignSession:
         new["order"] = _check_order(new["order"])
         new["strength"] = _check_strength(new["strength"])
         new["weights"] = _check_weights(new["weights"])
+        if new["mode"] not in ("exact", "spectral"):
+            raise ValueError(f"unknown solver mode {new['mode']!r} (expected 'exact' or 'spectral')")
+        new["k"] = spectral.check_k(new["k"])  # against the mesh size when the basis is needed
+        new["precision"] = spectral.check_precision(new["precision"])
         if new["align"] not in ALIGN_CHOICES:
             raise ValueError(f"unknown align {new['align']!r} (expected one of {', '.join(ALIGN_CHOICES)})")
         if new["align"] == "field":
@@ -133,6 +158,50 @@ class DesignSession:
     @property
     def settings(self) -> dict[str, Any]:
         return {k: v for k, v in self._settings.items() if k != "alignment_field"}
+
+    @property
+    def mode(self) -> str:
+        return self._settings["mode"]
+
+    # ------------------------------------------------------------------ spectral basis
+    def precompute(self, progress: ProgressCallback | None = None) -> spectral.BasisInfo:
+        """Make the spectral basis for the current n, weights, k and precision available: from memory, the
+        disk cache, or computed (progress(fraction) is called; returning False cancels with
+        nfield.core.Cancelled and leaves the session as it was). Works in either mode, so a tool can
+        precompute before switching to spectral mode."""
+        ops = self._operators()
+        s = self._settings
+        key = (self._ops_token, s["k"], s["precision"])
+        if self._basis is None or self._basis_key != key:
+            basis, info = spectral.load_or_compute_basis(ops, s["k"], s["precision"], self.cache_dir,
+                                                         progress if progress is not None else self.progress)
+            # Only replace the old basis once the new one exists (cancel or failure keep the old state).
+            self._basis, self._basis_key, self.basis_info = basis, key, info
+        return self.basis_info
+
+    @property
+    def has_basis(self) -> bool:
+        """True when the basis for the current settings is in memory (no computation before a solve)."""
+        s = self._settings
+        if self._basis is None or self._ops_key != (s["n"], s["weights"]):
+            return False
+        return self._basis_key == (self._ops_token, s["k"], s["precision"])
+
+    def low_pass(self, field=None, details: bool = True) -> FieldResult:
+        """The low-pass filter (paper section 8) of a field onto the first k eigenfields: the current
+        solution's raw field by default, or a complex per-triangle field. Computes the basis if needed."""
+        t0 = time.perf_counter()
+        self.precompute()
+        if field is None:
+            if self.field is None:
+                self.solve(details=False)
+            field = self.field.raw_solution
+        ops = self._operators()
+        w = spectral.low_pass(ops, self._basis, field)
+        s = self._settings
+        return _result(self.mesh, ops, _normalize(w), w, n=s["n"], order=s["order"], align=s["align"],
+                       strength=s["strength"], weights=s["weights"], lam=None, sign_fixed=[], t0=t0,
+                       details=details, mode="spectral", basis_size=int(self._basis.size))
 
     # ------------------------------------------------------------------ constraints
     def set_direction(self, face: int, direction) -> None:
@@ -291,29 +360,68 @@ class DesignSession:
         sings = {v: i for v, i in self._sings.items()
                  if not any(t in frozen_set for t in self.mesh.native.vertex_ring_faces(v))}
         kind = "vector" if vecs and not dirs else "direction"
+        if s["mode"] == "spectral" and not frozen_tris.size:
+            w, lam, sign_fixed = self._solve_reduced(ops, kind, dirs, vecs, sings)
+            mode, basis_size = "spectral", int(self._basis.size)
+        else:
+            w, lam, sign_fixed = self._solve_exact(ops, kind, dirs, vecs, sings, frozen_tris, frozen_values,
+                                                   frozen_key)
+            mode, basis_size = "exact", None
+        u = _normalize(w)
+        self._dirty = False
+        self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
+                             strength=s["strength"], weights=s["weights"], lam=lam, sign_fixed=sign_fixed,
+                             t0=t0, details=details, mode=mode, basis_size=basis_size)
+        return self.field
+
+    @property
+    def constraint_residual(self) -> float:
+        """After a spectral solve: the largest violation of a constraint row by the reduced solution,
+        relative to the largest constrained value (the field is then snapped onto its constraints at the
+        constrained faces). ~1e-12 when k is large enough for the constraints; 0 after an exact solve."""
+        if self.field is None or self.field.mode != "spectral" or self._reduced is None:
+            return 0.0
+        return float(self._reduced.constraint_residual)
+
+    def _solve_exact(self, ops, kind, dirs, vecs, sings, frozen_tris, frozen_values, frozen_key):
+        s = self._settings
         key = (self._ops_token, s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
         if self._solver is None or key != self._solver_key:
-            nat = native()
-            solver = nat.ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
-                                     progress=self.progress,
-                                     frozen_faces=frozen_tris if frozen_tris.size else None,
-                                     frozen_values=frozen_values if frozen_tris.size else None)
+            solver = native().ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
+                                          progress=self.progress,
+                                          frozen_faces=frozen_tris if frozen_tris.size else None,
+                                          frozen_values=frozen_values if frozen_tris.size else None)
             # Only replace the old solver once the new one exists: a failed or cancelled factorization
             # leaves the session as it was.
             self._solver, self._solver_key = solver, key
             self._in_solver = {"dir": {}, "vec": {}, "sing": {}}
         try:
-            self._sync(ops, dirs, vecs, sings)
+            self._in_solver = self._sync(self._solver, self._in_solver, ops, dirs, vecs, sings)
         except Exception:
             self._solver = self._solver_key = None  # its constraint state is unknown now: rebuild next time
             raise
         w = np.asarray(self._solver.solve(), dtype=np.complex128)
-        u = _normalize(w)
-        self._dirty = False
-        self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
-                             strength=s["strength"], weights=s["weights"], lam=float(self._solver.lambda_),
-                             sign_fixed=list(self._solver.sign_fixed_faces), t0=t0, details=details)
-        return self.field
+        return w, float(self._solver.lambda_), list(self._solver.sign_fixed_faces)
+
+    def _solve_reduced(self, ops, kind, dirs, vecs, sings):
+        s = self._settings
+        self.precompute()
+        # The strength is not part of the key: it only changes the diagonal Lambda (set_strength, O(k)).
+        key = (self._basis_key, s["order"], s["align"], self._alignment_version(), kind)
+        if self._reduced is None or key != self._reduced_key:
+            solver = native().ReducedSolver(ops, self._basis, s["order"], s["strength"], self._alignment_field(ops),
+                                            kind)
+            self._reduced, self._reduced_key = solver, key
+            self._in_reduced = {"dir": {}, "vec": {}, "sing": {}}
+        else:
+            self._reduced.set_strength(s["strength"])
+        try:
+            self._in_reduced = self._sync(self._reduced, self._in_reduced, ops, dirs, vecs, sings)
+        except Exception:
+            self._reduced = self._reduced_key = None
+            raise
+        w = np.asarray(self._reduced.solve(), dtype=np.complex128)
+        return w, float(self._reduced.lambda_), list(self._reduced.sign_fixed_faces)
 
     # ------------------------------------------------------------------ internals
     def _check_face_constraint(self, c, attr: str, label: str) -> None:
@@ -376,8 +484,9 @@ class DesignSession:
             self._alignment_key = key
         return self._alignment
 
-    def _sync(self, ops, dirs: dict, vecs: dict, sings: dict) -> None:
-        """Bring the native solver's constraints to the wanted state with the fewest calls."""
+    def _sync(self, solver, have: dict, ops, dirs: dict, vecs: dict, sings: dict) -> dict:
+        """Bring a native solver's constraints from state `have` to the wanted one with the fewest calls;
+        returns the new state."""
         want: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
         for kind, items in (("dir", dirs), ("vec", vecs)):
             if items:
@@ -389,8 +498,6 @@ class DesignSession:
         n = self._settings["n"]
         for v, index in sings.items():
             want["sing"][v] = int(round(index * n))
-        have = self._in_solver
-        solver = self._solver
         for t in set(have["dir"]) | set(have["vec"]):
             if t not in want["dir"] and t not in want["vec"]:
                 solver.remove_constraint(t)
@@ -406,4 +513,4 @@ class DesignSession:
         for v, num in want["sing"].items():
             if have["sing"].get(v) != num:
                 solver.set_singularity(v, num)
-        self._in_solver = want
+        return want

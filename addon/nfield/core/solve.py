@@ -63,6 +63,8 @@ class FieldResult:
     sign_fixed_faces: list[int]
     mesh_report: dict
     lambda_: float | None = None
+    mode: str = "exact"              # "exact" or "spectral" (reduced solve in a basis of basis_size eigenfields)
+    basis_size: int | None = None
     _all_directions: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
 
     @property
@@ -244,7 +246,7 @@ def _frames(ops) -> np.ndarray:
 
 
 def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
-            details: bool = True) -> FieldResult:
+            details: bool = True, mode: str = "exact", basis_size: int | None = None) -> FieldResult:
     """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
     nat = native()
     if details:
@@ -271,7 +273,8 @@ def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, s
         representation=u, raw_solution=w,
         directions=first,
         singularities=sings, energy=energy, seconds=time.perf_counter() - t0,
-        sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, _all_directions=all_faces,
+        sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, mode=mode, basis_size=basis_size,
+        _all_directions=all_faces,
     )
 
 
