@@ -309,8 +309,8 @@ def _store_result(obj, entry, result) -> None:
     stale = stale_items(obj)
     st.last_message = (f"Solved: {len(result.singularities)} singularities"
                        + (f"; {len(stale)} stale item(s) ignored" if stale else ""))
-    if st.solver_mode == "SPECTRAL":
-        st.spectral_ready = True
+    session = getattr(entry, "session", None)
+    st.spectral_ready = bool(session is not None and session.has_basis)
     notify_overlay(obj, result)
 
 

@@ -245,88 +245,12 @@ def _nearest(points: np.ndarray, p: np.ndarray, tol: float) -> int | None:
 
 
 # ------------------------------------------------------------------------------------------ sessions
-class PlainSession:
-    """Stand-in for nfield.core.DesignSession built on nfield.core.solve (no warm factorization, no regions).
-
-    Used only when nfield.core has no DesignSession (older core); same method names.
-    """
-
-    def __init__(self, mesh, n=4, order=2, align="none", strength=1.0, alignment_field=None, **_ignored):
-        self.mesh = mesh
-        self._settings = dict(n=n, order=order, align=align, strength=strength, alignment_field=alignment_field)
-        self._dirs: dict[int, Any] = {}
-        self._sings: dict[int, Any] = {}
-        self.field = None
-        self.layers: list = []
-
-    def configure(self, **kw):
-        self._settings.update(kw)
-
-    def set_direction(self, face, d):
-        from ..core import DirectionConstraint
-        self._dirs[int(face)] = DirectionConstraint(int(face), tuple(d))
-
-    def set_vector(self, face, v):
-        from ..core import VectorConstraint
-        self._dirs[int(face)] = VectorConstraint(int(face), tuple(v))
-
-    def remove(self, face):
-        _drop_constraint(self._dirs, face, f"face {face} has no constraint")
-
-    def set_singularity(self, vertex, index):
-        from ..core import SingularityConstraint
-        self._sings[int(vertex)] = SingularityConstraint(int(vertex), float(index))
-
-    def remove_singularity(self, vertex):
-        _drop_constraint(self._sings, vertex, f"vertex {vertex} has no singularity")
-
-    @property
-    def constraints(self):
-        return list(self._dirs.values()) + list(self._sings.values())
-
-    def solve(self):
-        from ..core import solve
-        s = self._settings
-        kw = {}
-        if s["align"] == "field":
-            kw["alignment_field"] = s["alignment_field"]
-        self.field = solve(self.mesh, n=s["n"], order=s["order"], align=s["align"], strength=s["strength"],
-                           constraints=self.constraints, **kw)
-        return self.field
-
-    def _no_regions(self, *a, **k):
-        raise NFieldError("region editing needs nfield.core.DesignSession, which this nfield.core lacks")
-
-    begin_region = commit_region = cancel_region = release_layer = _no_regions
-
-
-def _drop_constraint(table: dict, key, missing: str) -> None:
-    """Delete table[int(key)]; ValueError(missing) if absent, as DesignSession raises."""
-    if int(key) not in table:
-        raise ValueError(missing)
-    del table[int(key)]
-
-
-def design_session_class():
-    """nfield.core.DesignSession if available, else PlainSession."""
-    try:
-        from ..core import DesignSession  # type: ignore[attr-defined]
-        return DesignSession
-    except ImportError:
-        try:
-            from ..core.session import DesignSession  # type: ignore
-            return DesignSession
-        except ImportError:
-            return PlainSession
-
-
 @dataclass
 class CacheEntry:
     signature: str
     mesh: Any                     # nfield.core.Mesh
     arrays: MeshArrays
-    session: Any = None           # DesignSession (or PlainSession)
-    session_key: tuple = ()       # settings the session was built with (mode, k)
+    session: Any = None           # nfield.core.DesignSession
     result: Any = None            # last FieldResult (for the overlay)
     version: int = 0              # bumped on every new result (overlay refresh)
     extra: dict = field(default_factory=dict)
@@ -372,7 +296,8 @@ def get_entry_cached(obj) -> CacheEntry | None:
 def session_settings(obj, mesh) -> dict:
     """Keyword arguments for DesignSession/configure from the object's settings."""
     st = obj.nfield
-    kw = dict(n=st.n, order=st.order, align=st.align, strength=float(st.strength), alignment_field=None)
+    kw = dict(n=st.n, order=st.order, align=st.align, strength=float(st.strength), alignment_field=None,
+              mode=st.solver_mode.lower(), k=int(st.spectral_k))
     if st.alignment == "ATTRIBUTE":
         kw["alignment_field"] = read_alignment_attribute(obj, st.alignment_attribute, mesh.num_faces)
     return kw
@@ -395,33 +320,20 @@ def read_alignment_attribute(obj, name: str, num_faces: int) -> np.ndarray:
 
 def ensure_session(obj, entry: CacheEntry, progress=None):
     """The session of `entry`, created or reconfigured from the object's settings, with the stored design
-    applied (diffed against what the session already has)."""
-    st = obj.nfield
+    applied (diffed against what the session already has). A mode or k change reconfigures the same
+    session, so switching between exact and spectral mode keeps both the factorization and the basis."""
+    from ..core import DesignSession
+
     kw = session_settings(obj, entry.mesh)
-    cls = design_session_class()
-    key = (st.solver_mode, int(st.spectral_k) if st.solver_mode == "SPECTRAL" else 0, cls.__name__)
     state = design_state(obj)
     if entry.session is not None and entry.extra.get("design_state") != state:
         # region/layer state differs from the session (undo, redo, file reload): start over from the design
         entry.session = None
-    if entry.session is None or entry.session_key != key:
-        extra: dict = {}
-        if cls is not PlainSession:
-            extra["mode"] = st.solver_mode.lower()
-            if st.solver_mode == "SPECTRAL":
-                extra["k"] = int(st.spectral_k)
-            if progress is not None:
-                extra["progress"] = progress
-        elif st.solver_mode == "SPECTRAL":
-            raise NFieldError("spectral mode needs nfield.core.DesignSession, which this nfield.core lacks")
+    if entry.session is None:
         try:
-            entry.session = cls(entry.mesh, **kw, **extra)
+            entry.session = DesignSession(entry.mesh, **kw)
         except ValueError as exc:
             raise NFieldError(str(exc)) from None
-        except TypeError as exc:  # an older DesignSession without that option (e.g. k for spectral mode)
-            raise NFieldError(f"solver mode {st.solver_mode.lower()} is not supported by this nfield.core "
-                              f"({exc})") from None
-        entry.session_key = key
         entry.extra["settings"] = kw
         entry.extra["design_state"] = None
     elif _settings_differ(entry.extra.get("settings"), kw):
@@ -430,44 +342,47 @@ def ensure_session(obj, entry: CacheEntry, progress=None):
         except ValueError as exc:
             raise NFieldError(str(exc)) from None
         entry.extra["settings"] = kw
+    entry.session.progress = progress
     if entry.extra.get("design_state") is None:
         _restore_layers_and_region(obj, entry)
     apply_design(obj, entry.session)
     return entry.session
 
 
+def spectral_basis_pending(obj, entry: CacheEntry) -> bool:
+    """True when the object is in spectral mode and its basis is neither in memory nor in the disk cache:
+    a solve would compute it (minutes on large meshes), which only the Precompute operator may do from the
+    UI (in a worker thread, with progress and Esc)."""
+    if obj.nfield.solver_mode != "SPECTRAL":
+        return False
+    return not ensure_session(obj, entry).basis_available()
+
+
 def session_recipe(obj, entry: CacheEntry, mode: str | None = None, k: int | None = None) -> dict:
     """Everything needed to build the object's session away from Blender data (worker thread)."""
-    st = obj.nfield
-    mode = mode or st.solver_mode
-    k = int(k or st.spectral_k)
-    cls = design_session_class()
-    extra: dict = {}
-    if cls is not PlainSession:
-        extra["mode"] = mode.lower()
-        if mode == "SPECTRAL":
-            extra["k"] = k
-    elif mode == "SPECTRAL":
-        raise NFieldError("spectral mode needs nfield.core.DesignSession, which this nfield.core lacks")
-    return dict(cls=cls, mesh=entry.mesh, settings=session_settings(obj, entry.mesh), extra=extra,
-                design=desired_design(obj), key=(mode, k if mode == "SPECTRAL" else 0, cls.__name__))
+    settings = session_settings(obj, entry.mesh)
+    if mode is not None:
+        settings["mode"] = mode.lower()
+    if k is not None:
+        settings["k"] = int(k)
+    return dict(mesh=entry.mesh, settings=settings, design=desired_design(obj))
 
 
 def build_session(recipe: dict, progress=None):
     """Build a session from a recipe and solve it (no Blender data is read: safe in a worker thread).
     Returns (session, result)."""
-    extra = dict(recipe["extra"])
-    if progress is not None and recipe["cls"] is not PlainSession:
-        extra["progress"] = progress
-    session = recipe["cls"](recipe["mesh"], **recipe["settings"], **extra)
+    from ..core import DesignSession
+
+    session = DesignSession(recipe["mesh"], **recipe["settings"], progress=progress)
     apply_design(None, session, recipe["design"])
-    return session, session.solve()
+    result = session.solve()
+    session.progress = None
+    return session, result
 
 
 def install_session(obj, entry: CacheEntry, recipe: dict, session) -> None:
     """Adopt a session built by build_session (main thread)."""
     entry.session = session
-    entry.session_key = recipe["key"]
     entry.extra["settings"] = recipe["settings"]
     entry.extra["design_state"] = None
     _restore_layers_and_region(obj, entry)
@@ -585,8 +500,11 @@ def on_settings_changed(obj, context) -> None:
     st = obj.nfield
     if not st.live_update or obj.name not in _cache or _cache[obj.name].result is None:
         return
-
     try:
+        if spectral_basis_pending(obj, _cache[obj.name]):
+            st.last_message = (f"Spectral basis of {st.spectral_k} eigenfields not computed yet: "
+                               f"press Precompute (runs in the background, Esc cancels)")
+            return
         api.solve(obj)
     except Exception as exc:  # a bad setting must not raise from an update callback
         st.last_message = f"Solve failed: {exc}"

@@ -139,6 +139,10 @@ def _session(obj):
 
     arrays, _ = api.sync(obj)
     entry = session_cache.get_entry(obj, arrays)
+    if session_cache.spectral_basis_pending(obj, entry):
+        # computing the basis here would freeze the viewport for minutes
+        raise ValueError(f"the spectral basis ({obj.nfield.spectral_k} eigenfields) is not computed yet: "
+                         f"press Precompute in the nfield panel, or switch the solver to Exact")
     session = session_cache.ensure_session(obj, entry)
     if session.field is None:
         _store(api, obj, entry, session.solve())
@@ -470,12 +474,7 @@ class NFIELD_OT_singularity_tool(_ModalViewportTool, Operator):
 
     def _valid_numerators(self):
         """The numerators the solver accepts at this vertex, probed through the session's validation
-        (DesignSession.set_singularity raises ValueError with the valid range). None when the session only
-        validates at solve time (PlainSession fallback)."""
-        from . import session_cache
-
-        if isinstance(self._session, session_cache.PlainSession):
-            return None
+        (DesignSession.set_singularity raises ValueError with the valid range)."""
         n = int(bpy.data.objects[self._obj_name].nfield.n)
         v = self._vertex
         had = next((c.index for c in self._session.constraints

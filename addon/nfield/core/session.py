@@ -187,6 +187,14 @@ class DesignSession:
             return False
         return self._basis_key == (self._ops_token, s["k"], s["precision"])
 
+    def basis_available(self) -> bool:
+        """True when a solve in spectral mode needs no basis computation: the basis is in memory or a cache
+        file for the current settings exists (its content is validated when loaded)."""
+        if self.has_basis:
+            return True
+        s = self._settings
+        return spectral.cached_basis_path(self._operators(), s["k"], s["precision"], self.cache_dir) is not None
+
     def low_pass(self, field=None, details: bool = True) -> FieldResult:
         """The low-pass filter (paper section 8) of a field onto the first k eigenfields: the current
         solution's raw field by default, or a complex per-triangle field. Computes the basis if needed."""

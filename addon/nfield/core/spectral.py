@@ -98,6 +98,19 @@ def _larger_cached(ops, k: int, precision: str, directory: Path) -> list[tuple[i
     return sorted(found)
 
 
+def cached_basis_path(ops, k: int, precision: str = "double", cache_dir=None) -> Path | None:
+    """The cache file load_or_compute_basis would read (exact k, else the smallest larger k), or None.
+    Only the file name is checked, not its content (load validates that)."""
+    directory = _cache_dir(cache_dir)
+    if directory is None:
+        return None
+    path = basis_path(ops, k, precision, cache_dir)
+    if path is not None and path.is_file():
+        return path
+    larger = _larger_cached(ops, int(k), check_precision(precision), directory)
+    return larger[0][1] if larger else None
+
+
 def load_or_compute_basis(ops, k: int = DEFAULT_K, precision: str = "double", cache_dir=None,
                           progress: ProgressCallback | None = None, tolerance: float = 1e-10):
     """The basis of k eigenpairs of `ops`: from the disk cache when a valid file exists, else computed
