@@ -9,8 +9,11 @@
 4. writes WORKDIR/ready.json: the window-relative X11 pixel where the test must press (the face centroid),
    the pixel to drag to, and the face; the test drives xdotool;
 5. when WORKDIR/dragged exists, writes WORKDIR/result.json (the stored constraint, the constraint direction
-   projected back to the screen, the output attribute before/after) and a screenshot WORKDIR/window.png,
-   then quits. Any exception is written to result.json as {"error": ...} and Blender quits.
+   projected back to the screen, the output attribute before/after) and a screenshot WORKDIR/window.png;
+6. spectral Precompute in the background (the modal operator, as the panel button runs it): starts a large
+   basis, writes WORKDIR/spectral_started.json, and the test presses Esc; then a small basis runs to the
+   end. WORKDIR/spectral.json says what happened (states, settings, how often a UI timer ran meanwhile),
+   then Blender quits. Any exception is written to the JSON file of its phase as {"error": ...}.
 """
 import json
 import math
@@ -217,6 +220,73 @@ def report():
         out("result.json", res)
     except Exception:  # noqa: BLE001
         out("result.json", {"error": traceback.format_exc()})
+        bpy.ops.wm.quit_blender()
+        return None
+    bpy.app.timers.register(spectral_start, first_interval=0.5)
+    return None
+
+
+# ------------------------------------------------------------------ spectral precompute (modal, worker thread)
+SPECTRAL = {"ticks": 0, "phase": "cancel"}
+
+
+def spectral_fail(text):
+    out("spectral.json", {"error": text})
+    bpy.ops.wm.quit_blender()
+
+
+def _invoke_precompute(k):
+    win, area, region = view3d()
+    with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
+        return list(bpy.ops.nfield.precompute_spectral("INVOKE_DEFAULT", k=k))
+
+
+def spectral_start():
+    try:
+        obj = bpy.data.objects[STATE["obj"]]
+        SPECTRAL["before"] = [obj.nfield.solver_mode, obj.nfield.spectral_k]
+        SPECTRAL["t0"] = time.time()
+        SPECTRAL["invoke_cancel"] = _invoke_precompute(400)  # large: the test cancels it with Esc
+        out("spectral_started.json", {"invoke": SPECTRAL["invoke_cancel"]})
+        bpy.app.timers.register(spectral_wait, first_interval=0.05)
+    except Exception:  # noqa: BLE001
+        spectral_fail(traceback.format_exc())
+    return None
+
+
+def spectral_wait():
+    """UI timer: counts its own ticks while the worker computes (a frozen UI would not tick)."""
+    from nfield.blender import operators
+
+    try:
+        status = operators.precompute_status
+        if status["state"] == "running":
+            SPECTRAL["ticks"] += 1
+            SPECTRAL.setdefault("tick_times", []).append(round(time.time() - SPECTRAL["t0"], 3))
+            if time.time() - SPECTRAL["t0"] > 300:
+                spectral_fail(f"precompute still running after 300 s: {status}")
+                return None
+            return 0.05
+        obj = bpy.data.objects[STATE["obj"]]
+        if SPECTRAL["phase"] == "cancel":
+            SPECTRAL["cancel"] = dict(status, ticks=SPECTRAL["ticks"], seconds=time.time() - SPECTRAL["t0"],
+                                      settings_after=[obj.nfield.solver_mode, obj.nfield.spectral_k])
+            SPECTRAL["cancel"]["tick_times"] = SPECTRAL.pop("tick_times", [])
+            SPECTRAL.update(phase="finish", ticks=0, t0=time.time())
+            SPECTRAL["invoke_finish"] = _invoke_precompute(30)
+            return 0.05
+        import nfield.blender as nb
+
+        res = nb.field(obj)
+        SPECTRAL["finish"] = dict(status, ticks=SPECTRAL["ticks"], seconds=time.time() - SPECTRAL["t0"],
+                                  settings_after=[obj.nfield.solver_mode, obj.nfield.spectral_k],
+                                  spectral_ready=obj.nfield.spectral_ready,
+                                  result_mode=getattr(res, "mode", None),
+                                  basis_size=getattr(res, "basis_size", None))
+        out("spectral.json", {k: v for k, v in SPECTRAL.items() if k not in ("t0",)})
+    except Exception:  # noqa: BLE001
+        spectral_fail(traceback.format_exc())
+        return None
     bpy.ops.wm.quit_blender()
     return None
 

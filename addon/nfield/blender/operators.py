@@ -268,6 +268,12 @@ class NFIELD_OT_layer_release(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, fn, solve_after=True)
 
 
+#: State of the last background precompute (read by scripts and tests; the UI shows progress in the
+#: status bar): state is "idle", "running", "cancelled", "failed" or "finished".
+#: ui_updates counts the progress updates the UI made while the worker ran (the UI stayed responsive).
+precompute_status: dict = {"state": "idle", "object": "", "k": 0, "fraction": 0.0, "message": "", "ui_updates": 0}
+
+
 class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
     """Compute the spectral basis (k lowest eigenfields) in the background; Esc cancels"""
 
@@ -303,6 +309,8 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
         self._fraction = 0.0
         self._cancel = False
         self._outcome = None
+        precompute_status.update(state="running", object=obj.name, k=int(obj.nfield.spectral_k), fraction=0.0,
+                                 message="", ui_updates=0)
         self._thread = threading.Thread(target=self._work, daemon=True)
         self._thread.start()
         wm = context.window_manager
@@ -313,6 +321,7 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
 
     def _progress(self, fraction):
         self._fraction = float(fraction)
+        precompute_status["fraction"] = self._fraction
         return not self._cancel
 
     def _work(self):
@@ -328,6 +337,8 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
         if event.type != "TIMER":
             return {"RUNNING_MODAL"} if self._thread.is_alive() else self._finish(context)
         wm.progress_update(int(100 * self._fraction))
+        if self._thread.is_alive():
+            precompute_status["ui_updates"] += 1
         if context.workspace is not None:
             state = "cancelling" if self._cancel else f"{100 * self._fraction:.0f}%"
             context.workspace.status_text_set(f"nfield: computing spectral basis ({state}), Esc to cancel")
@@ -347,11 +358,14 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
             if obj is not None:
                 api.configure(obj, mode=self._previous[0], k=self._previous[1])
             if self._cancel:
+                precompute_status.update(state="cancelled", message="cancelled")
                 self.report({"WARNING"}, "nfield: spectral basis computation cancelled")
             else:
+                precompute_status.update(state="failed", message=str(outcome[1]))
                 self.report({"ERROR"}, f"nfield: spectral basis failed: {outcome[1]}")
             return {"CANCELLED"}
         if obj is None:
+            precompute_status.update(state="failed", message="the object was deleted")
             return {"CANCELLED"}
         _, session, result = outcome
         session_cache.install_session(obj, self._entry, self._recipe, session)
@@ -360,7 +374,11 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
             from . import attributes
 
             attributes.write(obj, self._arrays, result, obj.nfield.n)
-        self.report({"INFO"}, "nfield: spectral basis ready")
+        info = session.basis_info
+        message = (f"nfield: spectral basis ready ({info.k} eigenfields, {info.source}, "
+                   f"{info.seconds:.1f} s, {info.memory_bytes / 2**20:.0f} MB)")
+        precompute_status.update(state="finished", fraction=1.0, message=message)
+        self.report({"INFO"}, message)
         return {"FINISHED"}
 
 
