@@ -13,6 +13,7 @@
 #include "nfield/curvature.hpp"
 #include "nfield/errors.hpp"
 #include "nfield/mesh.hpp"
+#include "nfield/memory_guard.hpp"
 #include "nfield/mesh_io.hpp"
 #include "nfield/operators.hpp"
 #include "nfield/reduced_solver.hpp"
@@ -152,9 +153,11 @@ PYBIND11_MODULE(_native, m) {
   m.doc() = "nfield native solver: n-symmetry direction field splines on triangle meshes";
 
   py::register_local_exception<Cancelled>(m, "Cancelled", PyExc_RuntimeError);
+  py::register_local_exception<MemoryLimitError>(m, "InsufficientMemory", PyExc_MemoryError);
   // Module-local types and translators: two copies of this module (e.g. a development tree and an
   // installed Blender extension) can then live in one interpreter without clashing.
-  // Registered after Cancelled, so tried first; it leaves Cancelled to the translator above.
+  // Registered after Cancelled and InsufficientMemory, so tried first; it leaves them to their translators.
+  // std::bad_alloc (MemoryError) and other std::exception (RuntimeError) reach pybind11's default one.
   py::register_local_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
@@ -525,6 +528,16 @@ PYBIND11_MODULE(_native, m) {
       .def("with_precision", [](const SpectralBasis& b, const std::string& precision) {
         return b.with_precision(parse_precision(precision));
       }, py::arg("precision"));
+
+  m.def("estimate_basis_bytes", [](std::shared_ptr<FieldOperators> ops, int k, const std::string& precision) {
+    SpectralBasisOptions options;
+    options.precision = parse_precision(precision);
+    py::gil_scoped_release release;
+    return estimate_basis_bytes(*ops, k, options);
+  }, py::arg("ops"), py::arg("k"), py::arg("precision") = "double",
+        "Estimated peak memory (bytes) of computing a basis of k eigenfields");
+  m.def("available_memory_bytes", &available_memory_bytes,
+        "Bytes the memory guard considers available (MemAvailable, cgroup limit, NFIELD_MEMORY_LIMIT_MB); 0 if unknown");
 
   m.def("basis_cache_key", [](std::shared_ptr<FieldOperators> ops, int k, const std::string& precision) {
     return cache_key(*ops, k, parse_precision(precision));

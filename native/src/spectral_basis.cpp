@@ -1,5 +1,7 @@
 #include "nfield/spectral_basis.hpp"
 
+#include "nfield/memory_guard.hpp"
+
 #include <Eigen/CholmodSupport>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -791,6 +793,41 @@ std::string hex64(std::uint64_t v) {
 
 // ------------------------------------------------------------------------------------------ compute
 
+namespace {
+
+/// Peak bytes of compute() for k eigenpairs of N unknowns whose factor has `lnz` nonzeros.
+double basis_bytes(double lnz, int N, int k, const SpectralBasisOptions& opt) {
+  const double c = sizeof(Complex), n = N;
+  if (N <= opt.dense_limit) return 3.0 * n * n * c + 2.0 * n * k * c;  // dense Hermitian eigen solver
+  const double factor = static_cast<double>(cholesky_factor_bytes(lnz, static_cast<std::size_t>(N)));
+  const int slice = opt.slice_size > 0 ? opt.slice_size : 100;
+  double bytes;
+  if (k <= slice + slice / 2) {
+    const int b = std::min(opt.block_size, std::max(8, k / 8));
+    bytes = factor + (2.0 * k + 2.0 * b) * n * c + 2.0 * n * k * c;  // Krylov space, result, copy
+  } else {
+    const int b = std::min(opt.block_size, std::max(8, slice / 8));
+    const double per_worker = factor + (3.0 * slice + 2.0 * b) * n * c;
+    bytes = 2.0 * per_worker + 1.1 * n * k * c + n * k * c;  // two workers, all slices' vectors, result
+  }
+  if (opt.precision == BasisPrecision::Single) bytes += n * k * sizeof(std::complex<float>);
+  return bytes;
+}
+
+double harmonic_factor_nonzeros(const FieldOperators& ops) {
+  Eigen::CholmodSupernodalLLT<ComplexSparse, Eigen::Lower> analysis;
+  analysis.analyzePattern(ops.harmonic_matrix());
+  return analysis.cholmod().lnz;
+}
+
+}  // namespace
+
+std::size_t estimate_basis_bytes(const FieldOperators& ops, int k, const SpectralBasisOptions& options) {
+  const int N = ops.num_unknowns();
+  const double lnz = N <= options.dense_limit ? 0.0 : harmonic_factor_nonzeros(ops);
+  return static_cast<std::size_t>(basis_bytes(lnz, N, std::max(k, 1), options));
+}
+
 SpectralBasis SpectralBasis::compute(const FieldOperators& ops, int k, const SpectralBasisOptions& options,
                                      const ProgressCallback& progress) {
   const ComplexSparse& S = ops.harmonic_matrix();
@@ -803,6 +840,28 @@ SpectralBasis SpectralBasis::compute(const FieldOperators& ops, int k, const Spe
     throw ParameterError("spectral basis block size must be in [1, 512], got " + std::to_string(options.block_size));
   if (!(options.tolerance > 0 && options.tolerance < 1e-2))
     throw ParameterError("spectral basis tolerance must be in (0, 1e-2)");
+  {
+    // Memory guard, with what would fit: the largest k, and whether single precision storage helps.
+    const double lnz = N <= options.dense_limit ? 0.0 : harmonic_factor_nonzeros(ops);
+    const double need = basis_bytes(lnz, N, k, options);
+    const double budget = kMemoryHeadroom * static_cast<double>(available_memory_bytes());
+    if (budget > 0 && need > budget) {
+      int lo = 0, hi = k;  // largest k' < k that fits (need grows with k)
+      while (hi - lo > 1) {
+        const int mid = (lo + hi) / 2;
+        (basis_bytes(lnz, N, mid, options) <= budget ? lo : hi) = mid;
+      }
+      std::string advice = lo >= 1 ? "k <= " + std::to_string(lo) + " fits" : "no basis size fits";
+      SpectralBasisOptions single = options;
+      single.precision = BasisPrecision::Single;
+      if (options.precision == BasisPrecision::Double && basis_bytes(lnz, N, k, single) <= budget)
+        advice += "; so does single precision storage";
+      advice += "; the exact mode needs no basis";
+      require_memory(static_cast<std::size_t>(need),
+                     "the spectral basis of k=" + std::to_string(k) + " eigenfields (" + std::to_string(N) + " faces)",
+                     advice);
+    }
+  }
 
   RawEigenpairs raw;
   if (N <= options.dense_limit) {

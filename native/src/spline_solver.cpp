@@ -1,5 +1,7 @@
 #include "nfield/spline_solver.hpp"
 
+#include "nfield/memory_guard.hpp"
+
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -94,7 +96,18 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
   system_.resize(N, N);
   system_.setFromTriplets(uu.begin(), uu.end());
   system_.makeCompressed();
-  factor_.compute(system_);
+  factor_.analyzePattern(system_);
+  if (factor_.info() != Eigen::Success) throw SolverError("symbolic analysis of B - lambda M failed");
+  {
+    // Memory guard: the numeric factor's size is known from the symbolic analysis (nnz of L).
+    const std::size_t bytes = cholesky_factor_bytes(factor_.cholmod().lnz, static_cast<std::size_t>(N)) +
+                              static_cast<std::size_t>(system_.nonZeros()) * (sizeof(Complex) + sizeof(int));
+    require_memory(bytes, "the factorization of the order-" + std::to_string(order) + " system (" +
+                              std::to_string(N) + " faces)",
+                   order > 1 ? "a lower energy order needs less (its matrix is sparser), as does a decimated mesh"
+                             : "a decimated mesh needs less");
+  }
+  factor_.factorize(system_);
   if (factor_.info() != Eigen::Success)
     throw SolverError("factorization of B - lambda M failed: the matrix is not positive definite (lambda=" +
                       std::to_string(lambda_) + ")");

@@ -290,7 +290,7 @@ def solve(obj, *, n: int | None = None, order: int | None = None, align: str | N
     session = session_cache.ensure_session(obj, entry, progress=progress)
     try:
         result = session.solve()
-    except (ValueError, RuntimeError) as exc:
+    except (ValueError, RuntimeError, MemoryError) as exc:
         msg = str(exc)
         st.last_message = f"Solve failed: {msg}"
         raise NFieldError(msg) from None

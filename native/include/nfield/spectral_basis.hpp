@@ -130,6 +130,11 @@ class SpectralBasis {
   EdgeWeights weights_ = EdgeWeights::Geometric;
 };
 
+/// Estimated peak memory (bytes) of SpectralBasis::compute(ops, k, options): the eigenvectors (computed
+/// in double precision, plus the float32 copy for single storage), and per concurrent spectrum slice its
+/// LDL^H factor (size from a symbolic analysis of S) and Lanczos workspace. Used by the memory guard.
+std::size_t estimate_basis_bytes(const FieldOperators& ops, int k, const SpectralBasisOptions& options = {});
+
 /// A file-name-safe key for a basis of k eigenpairs of these operators, e.g.
 /// "basis-0123456789abcdef-n4-geometric-N69451-k500-f64". Different keys for different precisions.
 std::string cache_key(const FieldOperators& ops, int k, BasisPrecision precision = BasisPrecision::Double);
