@@ -402,3 +402,36 @@ def test_frozen_faces_use_the_exact_solver():
     assert s.solve().mode == "exact"  # the layer holds the region
     s.release_layer(0)
     assert s.solve().mode == "spectral"
+
+
+def test_components_without_data_get_their_smoothest_field():
+    """Two irregular spheres, one constraint on the first: the second has no data, and like the exact solver
+    the reduced one gives it its smoothest field (not zero). Compared as unit fields up to a global phase
+    (the smoothest field of a component is unique up to a phase): |<u_s, u_e>_M| / (|u_s| |u_e|) > 0.999.
+    With k = 1 only one component can be reached: the other is reported (warning) and stays zero."""
+    V1, F1 = mg.bumpy_sphere(3, seed=1)
+    V2, F2 = mg.bumpy_sphere(3, seed=2)
+    V = np.vstack([V1, np.asarray(V2) + [3.0, 0.0, 0.0]])
+    F = np.vstack([F1, np.asarray(F2) + len(V1)])
+    mesh = core.Mesh(V, F)
+    second = np.arange(len(F1), len(F))
+    areas = np.asarray(mesh.native.face_areas)[second]
+    d = np.cross(np.asarray(mesh.native.face_normals)[0], [0.3, 0.5, 0.8])
+    fields = {}
+    for mode in ("exact", "spectral"):
+        s = DesignSession(mesh, n=4, order=2, mode=mode, k=60, cache_dir=False)
+        s.set_direction(0, d)
+        fields[mode] = s.solve().representation[second]
+    ue, us = fields["exact"], fields["spectral"]
+    assert np.all(np.abs(us) > 0.99)
+    overlap = abs(np.vdot(ue, areas * us)) / np.sqrt(np.vdot(ue, areas * ue).real * np.vdot(us, areas * us).real)
+    assert overlap > 0.999, overlap
+    tiny = DesignSession(mesh, n=4, order=2, mode="spectral", k=1, cache_dir=False)
+    tiny.set_direction(0, d)
+    with pytest.warns(RuntimeWarning, match="1 mesh component"):
+        w = tiny.solve().raw_solution
+    # one component holds the single eigenfield (nonzero everywhere), the other is zero (but for the
+    # constrained face, which is snapped onto its constraint)
+    parts = [np.abs(w[1: len(F1)]), np.abs(w[second])]
+    assert sorted(bool(p.min() > 0) for p in parts) == [False, True]
+    assert min(p.max() for p in parts) == 0

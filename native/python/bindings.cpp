@@ -616,6 +616,7 @@ PYBIND11_MODULE(_native, m) {
       .def_property_readonly("size", &ReducedSolver::size)
       .def_property_readonly("sign_fixed_faces", &ReducedSolver::sign_fixed_faces)
       .def_property_readonly("constraint_residual", &ReducedSolver::constraint_residual)
+      .def_property_readonly("uncovered_components", &ReducedSolver::uncovered_components)
       .def_property_readonly("num_constraints", [](const ReducedSolver& s) { return s.constraints().size(); });
 
   // ---- BEGIN streamlines (hatching strokes; native/src/streamlines.cpp) ----

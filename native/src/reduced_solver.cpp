@@ -198,7 +198,8 @@ ComplexVector ReducedSolver::solve_coefficients() {
   if (has_data) {
     x = solve_with_pins(bU);
   } else if (constraints_.size() == 0) {
-    x = ComplexVector::Zero(k);  // the smoothest field: first basis vector, scaled to unit RMS
+    // The smoothest field: first basis vector, scaled to unit RMS (other components: see solve()).
+    x = ComplexVector::Zero(k);
     x[0] = std::sqrt(mesh.total_area());
   } else {
     // Homogeneous constraints only: smoothest field under them, by inverse iteration in the basis
@@ -229,7 +230,84 @@ ComplexVector ReducedSolver::solve() {
   ComplexVector field = reconstruct(x);
   // Snap constrained faces onto their constraint (as the exact solver does).
   for (const auto& [f, c] : constraints_.faces) field[f] = pins_.snapped(f, c, field[f]);
+  fill_empty_components(field);
   return field;
+}
+
+void ReducedSolver::fill_empty_components(ComplexVector& field) {
+  const FieldOperators& o = *ops_;
+  const TriangleMesh& mesh = o.mesh();
+  const int ncomp = std::max(1, mesh.report().num_components);
+  uncovered_components_ = 0;
+  if (ncomp == 1) return;  // the reduced solution already covers the only component
+  const std::vector<int>& comp = mesh.face_component();
+  const int N = o.num_unknowns();
+  const std::vector<bool>& covered = covered_components();
+  for (bool c : covered) uncovered_components_ += c ? 0 : 1;
+  if (uncovered_components_ > 0) {
+    // What the basis cannot reach is zero (the reduced solution there is rounding noise); constrained
+    // faces keep their snapped values.
+    for (int u = 0; u < N; ++u) {
+      const int f = o.face_of_unknown(u);
+      if (!covered[comp[f]] && !constraints_.faces.count(f)) field[f] = 0;
+    }
+  }
+  std::vector<bool> has_data(ncomp, false);
+  for (int u = 0; u < N; ++u)
+    if (std::abs(alignment_[u]) > 0) has_data[comp[o.face_of_unknown(u)]] = true;
+  for (const auto& [f, c] : constraints_.faces) has_data[comp[f]] = true;
+  for (const auto& [v, rows] : constraints_.singularity_rows) has_data[comp[rows.front().terms.front().first]] = true;
+  bool any_empty = false, any_data = false;
+  for (int c = 0; c < ncomp; ++c)
+    if (covered[c]) (has_data[c] ? any_data : any_empty) = true;
+  if (!any_empty) return;
+  // Scale of the fill: the RMS magnitude of the solved components (unit RMS if nothing was solved).
+  double rest = 0, rest_area = 0;
+  std::vector<double> comp_area(ncomp, 0.0);
+  for (int u = 0; u < N; ++u) {
+    const int f = o.face_of_unknown(u), c = comp[f];
+    comp_area[c] += o.mass()[u];
+    if (has_data[c] && covered[c]) rest += o.mass()[u] * std::norm(field[f]), rest_area += o.mass()[u];
+  }
+  const double scale = any_data && rest > 1e-300 ? std::sqrt(rest / rest_area) : 1.0;
+  // Each empty component gets its smoothest field: the restriction of the lowest basis vector with weight
+  // on it. (S and M are block diagonal over components, so such a restriction is an eigenvector of that
+  // component's block, with the same eigenvalue, even when eigenvectors of equal eigenvalues mix blocks.)
+  const int k = size();
+  for (int c = 0; c < ncomp; ++c) {
+    if (has_data[c] || !covered[c] || comp_area[c] <= 0) continue;
+    bool filled = false;
+    for (int j = 0; j < k && !filled; ++j) {
+      const ComplexVector v = basis_->vector(j);
+      double weight = 0;
+      for (int u = 0; u < N; ++u)
+        if (comp[o.face_of_unknown(u)] == c) weight += o.mass()[u] * std::norm(v[u]);
+      if (weight < 1e-3) continue;  // the vector lives on other components (M-unit: total weight 1)
+      const double s = scale * std::sqrt(comp_area[c] / weight);
+      for (int u = 0; u < N; ++u) {
+        const int f = o.face_of_unknown(u);
+        if (comp[f] == c) field[f] = s * v[u];
+      }
+      filled = true;
+    }
+  }
+}
+
+const std::vector<bool>& ReducedSolver::covered_components() {
+  if (!covered_.empty()) return covered_;
+  const FieldOperators& o = *ops_;
+  const std::vector<int>& comp = o.mesh().face_component();
+  const int ncomp = std::max(1, o.mesh().report().num_components);
+  covered_.assign(ncomp, false);
+  std::vector<double> weight(ncomp);
+  for (int j = 0; j < size(); ++j) {
+    const ComplexVector v = basis_->vector(j);
+    std::fill(weight.begin(), weight.end(), 0.0);
+    for (int u = 0; u < o.num_unknowns(); ++u) weight[comp[o.face_of_unknown(u)]] += o.mass()[u] * std::norm(v[u]);
+    for (int c = 0; c < ncomp; ++c)
+      if (weight[c] >= 1e-3) covered_[c] = true;  // M-unit vectors: weight 1 in total
+  }
+  return covered_;
 }
 
 ComplexVector low_pass(const FieldOperators& ops, const SpectralBasis& basis, const ComplexVector& field) {

@@ -35,6 +35,7 @@ from __future__ import annotations
 import copy
 import itertools
 import time
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -429,6 +430,10 @@ class DesignSession:
             self._reduced = self._reduced_key = None
             raise
         w = np.asarray(self._reduced.solve(), dtype=np.complex128)
+        if self._reduced.uncovered_components:
+            warnings.warn(f"{self._reduced.uncovered_components} mesh component(s) are not reached by any of the "
+                          f"first k={s['k']} eigenfields: their field is zero; raise k (at least the number of "
+                          f"components) or use the exact mode", RuntimeWarning, stacklevel=3)
         return w, float(self._reduced.lambda_), list(self._reduced.sign_fixed_faces)
 
     # ------------------------------------------------------------------ internals
