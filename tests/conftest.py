@@ -1,17 +1,22 @@
 """Session-level fixtures for the nfield tests.
 
-Only the location of the public test meshes lives here (tests/data/, see tests/data/README.md).
-Helpers: ``mesh_path(name)`` (plain function, ``from conftest import mesh_path``) and the
-session fixture ``data_dir``.
+The location of the public test meshes (tests/data/, see tests/data/README.md) and the import path of
+the development tree's package (addon/). Helpers: ``mesh_path(name)``, ``core_mesh(name)`` (plain
+functions, ``from conftest import ...``) and the session fixture ``data_dir``.
 """
 from __future__ import annotations
 
+import functools
+import os
+import sys
 from pathlib import Path
 
-import os
 import pytest
 
-DATA_DIR = Path(__file__).resolve().parent / "data"
+ROOT = Path(__file__).resolve().parent.parent
+DATA_DIR = ROOT / "tests" / "data"
+if str(ROOT / "addon") not in sys.path:  # build_addon.py test sets PYTHONPATH; plain pytest runs need this
+    sys.path.insert(0, str(ROOT / "addon"))
 
 # The eight meshes copied into tests/data/ (byte-for-byte, sha256 in tests/data/README.md).
 MESH_NAMES = (
@@ -36,6 +41,17 @@ def mesh_path(name: str) -> Path:
         available = ", ".join(sorted(p.name for p in DATA_DIR.glob("*.o[bf][jf]")))
         raise FileNotFoundError(f"test mesh {name!r} not found in {DATA_DIR} (available: {available})")
     return path
+
+
+@functools.lru_cache(maxsize=None)
+def core_mesh(name: str):
+    """nfield.core.Mesh of a test mesh, loaded once per session (skips the test if the mesh is missing)."""
+    path = DATA_DIR / name
+    if not path.is_file():
+        pytest.skip(f"test mesh {path} is missing")
+    from nfield.core import Mesh
+
+    return Mesh.from_file(path)
 
 
 @pytest.fixture(scope="session")

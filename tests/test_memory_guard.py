@@ -16,24 +16,20 @@ import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT / "addon") not in sys.path:
-    sys.path.insert(0, str(ROOT / "addon"))
+from conftest import DATA_DIR as DATA
+from conftest import ROOT, core_mesh
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 
-DATA = Path(__file__).parent / "data"
-
 
 @pytest.fixture(scope="module")
 def fandisk():
-    mesh = core.Mesh.from_file(DATA / "fandisk.obj")
+    mesh = core_mesh("fandisk.obj")
     return mesh, nat.FieldOperators(mesh.native, 4)
 
 
@@ -48,17 +44,22 @@ def test_available_memory_and_user_cap(monkeypatch):
     assert capped > 64 * 2**20 and abs(capped - free) < 0.5 * free  # MemAvailable again (it fluctuates)
 
 
+# Peak RSS from VmHWM (this process's address space): ru_maxrss would start at the forking parent's peak,
+# which Linux carries over exec.
 PROBE = """
-import resource, sys
+import sys
 sys.path.insert(0, {addon!r})
 from nfield.core import Mesh, native
 nat = native()
 mesh = Mesh.from_file({path!r})
 ops = nat.FieldOperators(mesh.native, 4)
 est = nat.estimate_basis_bytes(ops, {k}, "double")
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+def peak():
+    line = next(l for l in open("/proc/self/status") if l.startswith("VmHWM:"))
+    return int(line.split()[1]) * 1024
+before = peak()
 nat.SpectralBasis.compute(ops, {k})
-after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+after = peak()
 print(est, after - before)
 """
 
@@ -72,7 +73,7 @@ def test_basis_estimate_matches_measured_peak():
 
 
 def test_exact_factorization_refused_with_advice(monkeypatch):
-    mesh = core.Mesh.from_file(DATA / "rocker-arm.obj")
+    mesh = core_mesh("rocker-arm.obj")
     ops = nat.FieldOperators(mesh.native, 4)
     monkeypatch.setenv("NFIELD_MEMORY_LIMIT_MB", "5")
     with pytest.raises(nat.InsufficientMemory) as info:

@@ -28,22 +28,18 @@ import functools
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import meshgen as mg
-
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT / "addon") not in sys.path:
-    sys.path.insert(0, str(ROOT / "addon"))
+from conftest import DATA_DIR as DATA
+from conftest import core_mesh
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 from nfield.core import DesignSession, DirectionConstraint, SingularityConstraint, VectorConstraint  # noqa: E402
 
-DATA = Path(__file__).parent / "data"
 
 # The accuracy requirement for incremental vs from-scratch results ("to 1e-8 relative"). The
 # two computations factor the same matrix; they differ only in the order in which the cached columns
@@ -57,12 +53,7 @@ CONSTRAINT_TOL = 1e-8
 
 
 # ============================================================================== helpers
-@functools.lru_cache(maxsize=None)
-def data_mesh(name: str):
-    p = DATA / name
-    if not p.exists():
-        pytest.skip(f"test mesh {p} is missing")
-    return core.Mesh.from_file(p)
+data_mesh = core_mesh
 
 
 @functools.lru_cache(maxsize=None)

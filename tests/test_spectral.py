@@ -21,27 +21,21 @@ from __future__ import annotations
 
 import functools
 import os
-import sys
 import threading
 import time
-import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import meshgen as mg
-
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT / "addon") not in sys.path:
-    sys.path.insert(0, str(ROOT / "addon"))
+from conftest import DATA_DIR as DATA
+from conftest import core_mesh
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 from nfield.core import DesignSession, DirectionConstraint, VectorConstraint  # noqa: E402
 from nfield.core import spectral  # noqa: E402
 
-DATA = Path(__file__).parent / "data"
 
 # Complete basis: reduced == exact up to the rounding of two different linear-algebra routes (dense
 # eigenvectors of a 320-unknown problem and a sparse Cholesky). Observed 1e-14 (order 1) to 1e-11
@@ -56,12 +50,7 @@ def small_mesh():
     return core.Mesh(np.asarray(V, float), np.asarray(F, np.int64))
 
 
-@functools.lru_cache(maxsize=None)
-def data_mesh(name: str):
-    p = DATA / name
-    if not p.exists():
-        pytest.skip(f"test mesh {p} is missing")
-    return core.Mesh.from_file(p)
+data_mesh = core_mesh
 
 
 def tangent(mesh, face: int, rng) -> np.ndarray:
@@ -158,7 +147,8 @@ def test_complete_basis_equals_exact(order, align):
     mesh = small_mesh()
     N = mesh.native.num_active_faces
     rng = np.random.default_rng(order)
-    spec = DesignSession(mesh, n=4, order=order, align=align, mode="spectral", k=N, cache_dir=False)
+    spec = DesignSession(mesh, n=4, order=order, align=align, mode="spectral", k=N, precision="double",
+                         cache_dir=False)
     exact = DesignSession(mesh, n=4, order=order, align=align)
     for f in rng.choice(N, 6, replace=False):
         d = tangent(mesh, int(f), rng)
@@ -190,7 +180,8 @@ def test_complete_basis_vector_spline_equals_exact():
     mesh = small_mesh()
     N = mesh.native.num_active_faces
     rng = np.random.default_rng(7)
-    spec = DesignSession(mesh, n=2, order=2, align="curvature-max", mode="spectral", k=N, cache_dir=False)
+    spec = DesignSession(mesh, n=2, order=2, align="curvature-max", mode="spectral", k=N, precision="double",
+                         cache_dir=False)
     exact = DesignSession(mesh, n=2, order=2, align="curvature-max")
     for f in rng.choice(N, 5, replace=False):
         v = 0.5 * tangent(mesh, int(f), rng)
@@ -260,7 +251,7 @@ def test_low_pass_is_an_m_orthogonal_projection():
     U = np.asarray(small.vectors(ops))
     assert rel(spectral.low_pass(ops, small, U[:, 7]), U[:, 7]) < 1e-12  # basis vectors pass unchanged
     # and through the session: the filtered current solution, marked as spectral
-    s = DesignSession(mesh, n=4, order=2, mode="exact", k=40, cache_dir=False)
+    s = DesignSession(mesh, n=4, order=2, mode="exact", k=40, precision="double", cache_dir=False)
     s.set_direction(3, tangent(mesh, 3, rng))
     s.solve()
     lp = s.low_pass()

@@ -85,9 +85,9 @@ class DesignSession:
 
     def __init__(self, mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength: float = 1.0,
                  weights: str = "geometric", alignment_field: Any = None, mode: str = "exact",
-                 k: int = spectral.DEFAULT_K, precision: str = "double", cache_dir: Any = None,
+                 k: int = spectral.DEFAULT_K, precision: str = spectral.DEFAULT_PRECISION, cache_dir: Any = None,
                  progress: ProgressCallback | None = None):
-        """mode: "exact" or "spectral"; k, precision ("double" | "single"): the spectral basis;
+        """mode: "exact" or "spectral"; k, precision ("single" | "double"): the spectral basis;
         cache_dir: where bases are cached (None: the default, False: no disk cache); progress(fraction):
         called during factorizations and basis computations, returning False cancels them."""
         self.mesh = _check_mesh(mesh)

@@ -10,9 +10,11 @@ is recomputed. A cached basis with more eigenpairs than asked for is truncated i
 Where the cache lives: ``cache_dir`` argument, else ``$NFIELD_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/nfield/bases`` (``~/.cache/nfield/bases``). ``cache_dir=False`` disables it.
 
-Memory: k vectors of one complex value per face, 16 bytes each in double precision ("double") and
-8 bytes in "single" (e.g. 69k faces, k = 500: 556 MB / 278 MB). Single precision halves that; the reduced
-solution then differs by up to ~1e-3 relative with many constraints (bench/results/spectral.md).
+Memory: k vectors of one complex value per face, 8 bytes each in single precision ("single", the default)
+and 16 in "double" (e.g. 69k faces, k = 500: 265 MB / 530 MB). Single precision changes the reduced
+solution by ~3e-7 relative (bench/results/spectral.md: largest direction change 0.002 degrees, six orders
+below the reduction error) and halves both the memory and the reconstruction time; "double" is for
+comparisons with the exact solver at full precision.
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from ._loader import native
 from .solve import _check_int
 
 DEFAULT_K = 500
+DEFAULT_PRECISION = "single"
 PRECISIONS = ("double", "single")
 CACHE_SUFFIX = ".nfb"
 
@@ -111,7 +114,7 @@ def cached_basis_path(ops, k: int, precision: str = "double", cache_dir=None) ->
     return larger[0][1] if larger else None
 
 
-def load_or_compute_basis(ops, k: int = DEFAULT_K, precision: str = "double", cache_dir=None,
+def load_or_compute_basis(ops, k: int = DEFAULT_K, precision: str = "single", cache_dir=None,
                           progress: ProgressCallback | None = None, tolerance: float = 1e-10):
     """The basis of k eigenpairs of `ops`: from the disk cache when a valid file exists, else computed
     (progress(fraction) is called; returning False cancels with nfield.core.Cancelled) and saved.
