@@ -23,6 +23,7 @@ import functools
 import os
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -426,3 +427,26 @@ def test_components_without_data_get_their_smoothest_field():
     parts = [np.abs(w[1: len(F1)]), np.abs(w[second])]
     assert sorted(bool(p.min() > 0) for p in parts) == [False, True]
     assert min(p.max() for p in parts) == 0
+
+
+def test_constraints_the_basis_cannot_meet_warn():
+    """Three n-vector constraints (six real rows) in a basis of two eigenfields (four real unknowns) cannot
+    all hold: the rows are met in the least-squares sense, and the session says so (warning) instead of
+    returning a field that silently misses them. With k = 60 they hold."""
+    mesh = data_mesh("fandisk.obj")
+    rng = np.random.default_rng(4)
+    faces = [10, 5000, 9000]
+    for k, warns in ((2, True), (60, False)):
+        s = DesignSession(mesh, n=4, order=2, mode="spectral", k=k, cache_dir=False)
+        for f in faces:
+            s.set_vector(f, 0.5 * tangent(mesh, f, rng))
+        if warns:
+            with pytest.warns(RuntimeWarning, match="cannot meet every constraint"):
+                r = s.solve()
+            assert s.constraint_residual > 1e-6
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error", RuntimeWarning)
+                r = s.solve()
+            assert s.constraint_residual < 1e-8
+        assert np.isfinite(r.raw_solution).all()

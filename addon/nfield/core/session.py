@@ -62,6 +62,11 @@ from .solve import (
 ProgressCallback = Callable[[float], Any]
 
 
+# A reduced solve whose constraint rows are violated by more than this (relative) warns: with enough
+# eigenfields the rows hold to ~1e-12 (tests/test_spectral.py); 1e-6 is far above rounding and far below
+# a visible deviation.
+SPECTRAL_RESIDUAL_WARNING = 1e-6
+
 _tokens = itertools.count(1)
 
 
@@ -430,6 +435,12 @@ class DesignSession:
             self._reduced = self._reduced_key = None
             raise
         w = np.asarray(self._reduced.solve(), dtype=np.complex128)
+        residual = float(self._reduced.constraint_residual)
+        if residual > SPECTRAL_RESIDUAL_WARNING:
+            warnings.warn(f"the first k={s['k']} eigenfields cannot meet every constraint exactly (largest row "
+                          f"violation {residual:.1e} of the constrained values; constraints very close to each "
+                          f"other need finer eigenfields): raise k or use the exact mode", RuntimeWarning,
+                          stacklevel=3)
         if self._reduced.uncovered_components:
             warnings.warn(f"{self._reduced.uncovered_components} mesh component(s) are not reached by any of the "
                           f"first k={s['k']} eigenfields: their field is zero; raise k (at least the number of "
