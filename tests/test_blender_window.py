@@ -19,7 +19,8 @@ Checks:
 * a screenshot is saved to tests/artifacts/blender_window.png;
 * the spectral Precompute button's operator (modal, worker thread): a large basis is cancelled with Esc
   while it computes (settings restored, the status says cancelled, the UI updated the progress meanwhile),
-  a small one runs to the end (spectral mode, basis ready, the field solved in the basis).
+  a small one runs to the end (spectral mode, basis ready, the field solved in the basis);
+* a settings change that needs a new factorization is solved by the background operator's worker thread.
 Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing.
 """
 from __future__ import annotations
@@ -182,6 +183,12 @@ def test_constraint_drag_in_real_window(tmp_path):
     # rates are no measure here: under Xvfb's software GL on a loaded 2-core machine even an idle Blender
     # runs its 50 ms timers only about once a second.)
     assert cancel["fraction"] < 1.0 and cancel["ui_updates"] >= 1 and cancel["ticks"] >= 1, cancel
+    # A strength change with live update needs a new factorization: it ran in the background operator's
+    # worker thread and its result was stored (exact mode, a different lambda).
+    bg = spectral["background"]
+    assert "background" in spectral["message_after_change"], spectral["message_after_change"]
+    assert bg["state"] == "finished" and bg["thread"] == "nfield-solve" and bg["work"] == "factorization", bg
+    assert bg["result_mode"] == "exact" and bg["lambda_after"] != spectral["before_background"], bg
 
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     shot = ARTIFACTS / "blender_window.png"

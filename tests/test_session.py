@@ -802,3 +802,40 @@ def test_session_belongs_to_its_mesh(tmp_path, monkeypatch):
     assert np.array_equal(s.solve().raw_solution, w_small) and s._solver is solver
     # exact mode keeps nothing on disk
     assert list(home.iterdir()) == [] and list(cwd.iterdir()) == []
+
+
+def test_pending_work_tells_when_a_solve_must_factor(tmp_path):
+    """pending_work() lets the Blender layer move long work to a worker thread: "factorization" exactly
+    when the next solve builds a new ExactSolver, "basis" when spectral mode would compute a basis, None
+    for incremental solves (re-aim, new face, removal) and spectral strength changes."""
+    mesh = get_mesh("bumpy")
+    rng = np.random.default_rng(8)
+    s = DesignSession(mesh, n=4, order=2, k=30, cache_dir=tmp_path)
+    assert s.pending_work() == "factorization"
+    s.set_direction(3, tangent(mesh, 3, rng))
+    s.solve()
+    solver = s._solver
+    for edit in (lambda: s.set_direction(3, tangent(mesh, 3, rng)), lambda: s.set_direction(9, tangent(mesh, 9, rng)),
+                 lambda: s.remove(9)):
+        edit()
+        assert s.pending_work() is None
+        s.solve()
+        assert s._solver is solver
+    for change in ({"strength": 2.0}, {"order": 3}, {"n": 2}):
+        s.configure(**change)
+        assert s.pending_work() == "factorization"
+        s.solve()
+        assert s.pending_work() is None and s._solver is not solver
+        solver = s._solver
+    s.begin_region(np.arange(40))
+    assert s.pending_work() == "factorization"
+    s.cancel_region()
+    s.configure(mode="spectral")
+    assert s.pending_work() == "basis"
+    s.precompute()
+    assert s.pending_work() is None
+    s.solve()
+    s.configure(strength=5.0)
+    assert s.pending_work() is None
+    fresh = DesignSession(mesh, n=2, order=3, strength=2.0, mode="spectral", k=30, cache_dir=tmp_path)
+    assert fresh.pending_work() is None  # the basis is in the disk cache

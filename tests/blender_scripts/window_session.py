@@ -243,10 +243,17 @@ def _invoke_precompute(k):
 
 def spectral_start():
     try:
-        obj = bpy.data.objects[STATE["obj"]]
+        # A finer sphere (20,480 faces) makes the cancelled basis long enough (tens of seconds) for the
+        # test's Esc to arrive mid-computation whatever the machine's load.
+        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=6, radius=1.0, location=(0.0, 0.0, 0.0))
+        fine = bpy.context.active_object
+        fine.name = "SpectralSphere"
+        bpy.data.objects[STATE["obj"]].hide_set(True)
+        STATE["obj"] = fine.name
+        obj = fine
         SPECTRAL["before"] = [obj.nfield.solver_mode, obj.nfield.spectral_k]
         SPECTRAL["t0"] = time.time()
-        SPECTRAL["invoke_cancel"] = _invoke_precompute(400)  # large: the test cancels it with Esc
+        SPECTRAL["invoke_cancel"] = _invoke_precompute(500)  # large: the test cancels it with Esc
         out("spectral_started.json", {"invoke": SPECTRAL["invoke_cancel"]})
         bpy.app.timers.register(spectral_wait, first_interval=0.05)
     except Exception:  # noqa: BLE001
@@ -283,6 +290,33 @@ def spectral_wait():
                                   spectral_ready=obj.nfield.spectral_ready,
                                   result_mode=getattr(res, "mode", None),
                                   basis_size=getattr(res, "basis_size", None))
+        # A settings change with live update that needs a factorization: solved by the background operator.
+        obj.nfield.solver_mode = "EXACT"
+        SPECTRAL["before_background"] = nb.field(obj).lambda_
+        SPECTRAL.update(phase="background", t0=time.time())
+        obj.nfield.strength = 3.0  # property update -> live update -> background solve
+        SPECTRAL["message_after_change"] = obj.nfield.last_message
+        bpy.app.timers.register(background_wait, first_interval=0.1)
+    except Exception:  # noqa: BLE001
+        spectral_fail(traceback.format_exc())
+    return None
+
+
+def background_wait():
+    from nfield.blender import background
+    import nfield.blender as nb
+
+    try:
+        status = dict(background.status)
+        if status["state"] != "finished" and status["state"] not in ("failed", "cancelled"):
+            if time.time() - SPECTRAL["t0"] > 120:
+                spectral_fail(f"background solve did not finish: {status}")
+                return None
+            return 0.1
+        obj = bpy.data.objects[STATE["obj"]]
+        res = nb.field(obj)
+        SPECTRAL["background"] = dict(status, result_mode=res.mode, lambda_after=res.lambda_,
+                                      strength=obj.nfield.strength)
         out("spectral.json", {k: v for k, v in SPECTRAL.items() if k not in ("t0",)})
     except Exception:  # noqa: BLE001
         spectral_fail(traceback.format_exc())

@@ -46,7 +46,7 @@ from .api import (  # noqa: F401  (public scripting API)
 )
 
 #: modules registered in this order (optional ones may be missing in partial installs)
-_MODULES = ("properties", "operators", "material", "hatching", "panels")
+_MODULES = ("properties", "operators", "background", "material", "hatching", "panels")
 _OPTIONAL_MODULES = ("overlay", "tools")
 _registered: list = []
 

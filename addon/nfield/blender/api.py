@@ -282,6 +282,10 @@ def solve(obj, *, n: int | None = None, order: int | None = None, align: str | N
     Writes the output attributes when `write` is True (default: the object's Write Attributes setting).
     Returns the nfield.core.FieldResult (per polygon; object space).
     """
+    from . import background
+
+    if background.busy(obj):
+        raise NFieldError(f"'{obj.name}' is being solved in the background: wait for it to finish or press Esc")
     configure(obj, n=n, order=order, align=align, strength=strength, mode=mode, k=k,
               alignment_attribute=alignment_attribute)
     arrays, _ = sync(obj)

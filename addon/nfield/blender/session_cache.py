@@ -500,10 +500,19 @@ def on_settings_changed(obj, context) -> None:
     st = obj.nfield
     if not st.live_update or obj.name not in _cache or _cache[obj.name].result is None:
         return
+    from . import background
+
+    if background.busy(obj):  # the worker owns the session: solve again when it is done
+        background.defer(obj)
+        return
     try:
         if spectral_basis_pending(obj, _cache[obj.name]):
             st.last_message = (f"Spectral basis of {st.spectral_k} eigenfields not computed yet: "
                                f"press Precompute (runs in the background, Esc cancels)")
+            return
+        if background.interactive() and ensure_session(obj, _cache[obj.name]).pending_work() == "factorization":
+            st.last_message = "Solving in the background (Esc cancels)"
+            background.start_later(obj.name)
             return
         api.solve(obj)
     except Exception as exc:  # a bad setting must not raise from an update callback

@@ -367,13 +367,7 @@ class DesignSession:
         t0 = time.perf_counter()
         s = self._settings
         ops = self._operators()
-        frozen_tris, frozen_values, frozen_key = self._frozen()
-        frozen_set = set(frozen_tris.tolist())
-        dirs = {f: d for f, d in self._dirs.items() if not self._face_frozen(f, frozen_set)}
-        vecs = {f: v for f, v in self._vecs.items() if not self._face_frozen(f, frozen_set)}
-        sings = {v: i for v, i in self._sings.items()
-                 if not any(t in frozen_set for t in self.mesh.native.vertex_ring_faces(v))}
-        kind = "vector" if vecs and not dirs else "direction"
+        frozen_tris, frozen_values, frozen_key, dirs, vecs, sings, kind = self._solve_inputs()
         if s["mode"] == "spectral" and not frozen_tris.size:
             w, lam, sign_fixed = self._solve_reduced(ops, kind, dirs, vecs, sings)
             mode, basis_size = "spectral", int(self._basis.size)
@@ -388,6 +382,35 @@ class DesignSession:
                              t0=t0, details=details, mode=mode, basis_size=basis_size)
         return self.field
 
+    def pending_work(self) -> str | None:
+        """What the next solve() must compute before it can solve: "basis" (spectral mode, the basis is
+        neither in memory nor cached: minutes), "factorization" (exact mode with new settings, constraints
+        kind or frozen faces: about a second per 100k faces), or None (a fast incremental solve). Lets a UI
+        move the long work to a worker thread."""
+        s = self._settings
+        frozen_tris, _values, frozen_key, _dirs, _vecs, _sings, kind = self._solve_inputs()
+        if s["mode"] == "spectral" and not frozen_tris.size:
+            return None if self.basis_available() else "basis"
+        if self._ops_key != (s["n"], s["weights"]) or self._solver is None:
+            return "factorization"
+        return None if self._exact_key(kind, frozen_key) == self._solver_key else "factorization"
+
+    def _solve_inputs(self):
+        """(frozen triangles, values, key, direction, vector and singularity constraints outside them, kind)."""
+        frozen_tris, frozen_values, frozen_key = self._frozen()
+        frozen_set = set(frozen_tris.tolist())
+        dirs = {f: d for f, d in self._dirs.items() if not self._face_frozen(f, frozen_set)}
+        vecs = {f: v for f, v in self._vecs.items() if not self._face_frozen(f, frozen_set)}
+        sings = {v: i for v, i in self._sings.items()
+                 if not any(t in frozen_set for t in self.mesh.native.vertex_ring_faces(v))}
+        kind = "vector" if vecs and not dirs else "direction"
+        return frozen_tris, frozen_values, frozen_key, dirs, vecs, sings, kind
+
+    def _exact_key(self, kind: str, frozen_key) -> tuple:
+        """What the ExactSolver's factorization depends on."""
+        s = self._settings
+        return (self._ops_token, s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
+
     @property
     def constraint_residual(self) -> float:
         """After a spectral solve: the largest violation of a constraint row by the reduced solution,
@@ -399,7 +422,7 @@ class DesignSession:
 
     def _solve_exact(self, ops, kind, dirs, vecs, sings, frozen_tris, frozen_values, frozen_key):
         s = self._settings
-        key = (self._ops_token, s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
+        key = self._exact_key(kind, frozen_key)
         if self._solver is None or key != self._solver_key:
             solver = native().ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
                                           progress=self.progress,
