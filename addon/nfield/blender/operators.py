@@ -87,6 +87,21 @@ class NFIELD_OT_solve(_NFieldObjectOperator, bpy.types.Operator):
 
         return self.run(context, fn)
 
+    def invoke(self, context, event):
+        """From the UI: a solve that must factor first runs in the background (nfield.solve_background)."""
+        from . import background
+
+        obj = context.active_object
+        if background.interactive() and not self.report_native_error():
+            try:
+                arrays, _ = api.sync(obj)
+                entry = session_cache.get_entry(obj, arrays)
+                if session_cache.ensure_session(obj, entry).pending_work() == "factorization":
+                    return bpy.ops.nfield.solve_background("INVOKE_DEFAULT", object_name=obj.name)
+            except (ValueError, RuntimeError, MemoryError):
+                pass  # execute() reports it
+        return self.execute(context)
+
 
 class NFIELD_OT_write_attributes(_NFieldObjectOperator, bpy.types.Operator):
     """Write the field to the output attributes (face direction, smoothed point direction, singularity index)"""
@@ -335,7 +350,10 @@ class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
         if event.type == "ESC":
             self._cancel = True
         if event.type != "TIMER":
-            return {"RUNNING_MODAL"} if self._thread.is_alive() else self._finish(context)
+            if not self._thread.is_alive():
+                return self._finish(context)
+            # other events go on to Blender: the viewport stays usable during the computation
+            return {"RUNNING_MODAL"} if event.type == "ESC" else {"PASS_THROUGH"}
         wm.progress_update(int(100 * self._fraction))
         if self._thread.is_alive():
             precompute_status["ui_updates"] += 1

@@ -144,6 +144,14 @@ def _session(obj):
         raise ValueError(f"the spectral basis ({obj.nfield.spectral_k} eigenfields) is not computed yet: "
                          f"press Precompute in the nfield panel, or switch the solver to Exact")
     session = session_cache.ensure_session(obj, entry)
+    from . import background
+
+    if background.busy(obj):
+        raise ValueError(f"'{obj.name}' is being solved in the background: wait for it or press Esc")
+    if background.interactive() and session.pending_work() == "factorization":
+        # the first factorization would freeze the viewport: do it in the background, then drag again
+        background.start_later(obj.name)
+        raise ValueError("preparing the solver in the background (Esc cancels): drag again when it is done")
     if session.field is None:
         _store(api, obj, entry, session.solve())
     return api, entry, session
