@@ -12,8 +12,13 @@
 namespace nfield {
 
 double strength_to_lambda(const FieldOperators& ops, int order, double strength) {
-  if (!std::isfinite(strength) || strength < kMinStrength || strength > kMaxStrength)
-    throw ParameterError("alignment strength must be between 1e-6 and 1e6, got " + std::to_string(strength));
+  if (!std::isfinite(strength) || strength < kMinStrength || strength > kMaxStrength) {
+    // %g, not std::to_string: 1e-7 must not read "0.000000".
+    std::ostringstream msg;
+    msg << "alignment strength must be a finite number between " << kMinStrength << " and " << kMaxStrength
+        << ", got " << strength;
+    throw ParameterError(msg.str());
+  }
   return -strength * ops.eigenvalue_unit(order);
 }
 
