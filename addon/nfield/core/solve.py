@@ -25,6 +25,11 @@ WEIGHT_CHOICES = ("geometric", "combinatorial")
 TANGENT_TOLERANCE = 1e-6
 #: |index * n - round(index * n)| allowed for a singularity index
 INDEX_TOLERANCE = 1e-9
+#: symmetry orders the native operators accept (FieldOperators: 1..64)
+MAX_N = 64
+#: admissible alignment strengths (kMinStrength, kMaxStrength of spline_solver.hpp): lambda = -strength
+#: (4 pi/A)^m stays negative, far below the paper's bound lambda_hat_1^m, so V stays positive definite
+MIN_STRENGTH, MAX_STRENGTH = 1e-6, 1e6
 
 
 @dataclass
@@ -105,7 +110,7 @@ def _check_int(value: Any, name: str, lo: int, hi: int | None = None) -> int:
 
 
 def _check_n(n: Any) -> int:
-    return _check_int(n, "n (symmetry order)", 1)
+    return _check_int(n, "n (symmetry order)", 1, MAX_N)
 
 
 def _check_order(order: Any) -> int:
@@ -119,14 +124,15 @@ def _check_weights(weights: Any) -> str:
 
 
 def _check_strength(strength: Any) -> float:
+    must = f"strength must be a finite number in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}]"
     if isinstance(strength, bool):
-        raise ValueError(f"strength must be a number > 0, got {strength!r}")
+        raise ValueError(f"{must}, got {strength!r}")
     try:
         s = float(strength)
     except (TypeError, ValueError):
-        raise ValueError(f"strength must be a number > 0, got {strength!r}") from None
-    if not math.isfinite(s) or s <= 0:
-        raise ValueError(f"strength must be a finite number > 0 (got {strength!r})")
+        raise ValueError(f"{must}, got {strength!r}") from None
+    if not (math.isfinite(s) and MIN_STRENGTH <= s <= MAX_STRENGTH):
+        raise ValueError(f"{must} (got {strength!r})")
     return s
 
 
@@ -177,13 +183,22 @@ def _face_vectors(mesh: Mesh, items: Sequence, attr: str, label: str):
             raise ValueError(f"{label} on {what}: the face is excluded from the field (degenerate: zero area, "
                              f"repeated vertex, needle or duplicate face)")
         d = np.asarray(getattr(c, attr), dtype=np.float64)
-        length = float(np.linalg.norm(d))
-        if length == 0.0:
+        # Tangency is judged on d / max|d_i|: the norm of d itself under- or overflows for tiny (1e-300) or
+        # huge (1e308) components, which are valid directions.
+        big = float(np.abs(d).max())
+        if big == 0.0:
             raise ValueError(f"{label} on face {c.face}: the {attr} is the zero vector")
-        proj = d - normals[t] * float(d @ normals[t])
+        unit = d / big
+        length = float(np.linalg.norm(unit))
+        proj = unit - normals[t] * float(unit @ normals[t])
         if float(np.linalg.norm(proj)) < TANGENT_TOLERANCE * length:
             raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is parallel to the face "
                              f"normal (it has no tangent component)")
+        if attr == "direction":
+            d = unit / length  # only the direction counts: keep the native projection in range
+        elif not math.isfinite(big * length):
+            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is too long (its length "
+                             f"overflows a double)")
         tris[k] = t
         vecs[k] = d
     return tris, vecs
