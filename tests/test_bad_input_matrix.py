@@ -551,6 +551,46 @@ def test_cli(case, tmp_path):
                 singularities=[(s["vertex"], s["index"]) for s in summary["singularities"]])
 
 
+# ------------------------------------------------------------------------------------------ out of memory
+_OOM_SCRIPT = r"""
+import resource, sys
+sys.path.insert(0, sys.argv[1])
+import meshgen as mg
+from nfield import core
+from nfield.cli import main
+V, F = mg.icosphere(5)  # 20480 faces: the order-4 factorization needs far more than 64 MB
+mesh = core.Mesh(V, F)
+core.native()
+path = sys.argv[2]
+with open(path, "w") as fh:
+    fh.write("OFF\n%d %d 0\n" % (len(V), len(F)))
+    fh.writelines("%r %r %r\n" % tuple(v) for v in V)
+    fh.writelines("3 %d %d %d\n" % tuple(f) for f in F)
+used = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+resource.setrlimit(resource.RLIMIT_AS, (used + 64 * 2**20, resource.getrlimit(resource.RLIMIT_AS)[1]))
+try:
+    core.solve(mesh, n=4, order=4)
+    print("CORE no error")
+except MemoryError as exc:
+    print("CORE MemoryError", exc)
+print("CLI exit", main(["solve", path, "--n", "4", "--order", "4"]))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs RLIMIT_AS and /proc (Linux)")
+def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
+    """A real std::bad_alloc (address space limited to 64 MB above what the process uses, in a subprocess):
+    the core raises MemoryError, the CLI exits 2 with one line (not exit 1, not a traceback)."""
+    env = dict(os.environ, PYTHONPATH=str(ADDON), OPENBLAS_NUM_THREADS="1")
+    proc = subprocess.run([sys.executable, "-c", _OOM_SCRIPT, str(Path(__file__).parent), str(tmp_path / "big.off")],
+                          capture_output=True, text=True, env=env, timeout=CLI_TIMEOUT * 2)
+    assert "CORE MemoryError" in proc.stdout, proc.stdout + proc.stderr
+    assert "CLI exit 2" in proc.stdout, proc.stdout + proc.stderr
+    err = [l for l in proc.stderr.splitlines() if l.startswith("nfield:")]
+    assert err == [l for l in proc.stderr.splitlines() if l.strip()] and len(err) == 1, proc.stderr
+    assert err[0].startswith("nfield: error: out of memory"), err
+
+
 # ------------------------------------------------------------------------------------------ docs
 def test_docs_list_every_case():
     """docs/hardening.md's "Bad input" section names every case of the table (and no unknown one)."""

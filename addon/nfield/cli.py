@@ -1,6 +1,7 @@
 """Command line: ``python -m nfield {eig,solve,info} ...``.
 
-Exit codes: 0 success; 2 expected failure (bad arguments or files, invalid constraints, solver errors),
+Exit codes: 0 success; 2 expected failure (bad arguments or files, invalid constraints, solver errors,
+out of memory),
 printed as one line ``nfield: error: <reason>`` on stderr; 1 unexpected internal error (one line; set
 NFIELD_DEBUG=1 for the traceback); 130 interrupted.
 """
@@ -260,6 +261,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted\n")
         return 130
+    except MemoryError as exc:  # std::bad_alloc in the solver: an expected failure on too large input
+        if debug:
+            traceback.print_exc()
+        sys.stderr.write(f"{PROG}: error: out of memory ({_one_line(str(exc)) or 'MemoryError'}): the mesh or the "
+                         f"number of constraints is too large for this machine\n")
+        return 2
     except (CLIError, ValueError, RuntimeError, OSError, NativeModuleError) as exc:
         if debug:
             traceback.print_exc()
