@@ -176,6 +176,14 @@ def _sphere_ring_vectors(vertex=0):
     return out
 
 
+def _bent_strip():
+    """3 x 6 grid bent by z = sin(2x) cos(1.5y): 20 faces; vertex 7 is interior with faces 0 and 1 in its ring."""
+    V, F = mg.grid(3, 6)
+    V = V.copy()
+    V[:, 2] = np.sin(2 * V[:, 0]) * np.cos(1.5 * V[:, 1])
+    return V, F
+
+
 def _all_faces_vectors():
     V, F = _sphere()
     out = []
@@ -315,6 +323,14 @@ CASES: list[Case] = [
     Case("contradictory_ring", "vector constraints on the ring of vertex 0 plus a singularity there", _sphere,
          params=S(n=4), constraints=tuple(_sphere_ring_vectors(0) + [{"vertex": 0, "index": 0.25}]),
          error=r"contradictory constraints.*singularity at vertex 0"),
+    # found by tests/test_solver_properties.py: at order 3 the rank test of the Schur complement missed this
+    # contradiction and the singularity's rows were violated by O(1); now every solve checks its rows
+    Case("contradictory_high_order", "two vector constraints on the ring of vertex 7 plus index -1 there, order 3",
+         _bent_strip, params=S(n=1, order=3),
+         constraints=({"face": 0, "vector": [-0.20838045255661028, 0.8359095750930188, -0.5077723596850375]},
+                      {"face": 1, "vector": [-0.2921966828870946, 0.833019497274182, -0.46978677681566094]},
+                      {"vertex": 7, "index": -1.0}),
+         error=r"contradictory constraints.*singularity at vertex 7"),
     Case("vector_on_every_face", "a vector constraint on each of the 80 faces (all degrees of freedom)",
          _sphere, params=S(n=4), constraints=tuple(_all_faces_vectors()), components=1,
          outcome="solves: the field is the constraints"),

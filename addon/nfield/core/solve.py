@@ -297,11 +297,11 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
     """Design an n-direction field (n-field spline, paper sections 4-7).
 
     mesh : nfield.core.Mesh.
-    n : symmetry order >= 1 (1 vector field, 2 line field, 4 cross field ...).
+    n : symmetry order 1..64 (1 vector field, 2 line field, 4 cross field ...).
     order : energy order 1..4 (1 harmonic, 2 biharmonic ...).
     align : "none" | "curvature-max" | "curvature-min" | "field" (then `alignment_field` is an (F, 3) array
         of 3D vectors per input face; their tangent length weights the alignment).
-    strength : > 0, weight of the alignment (mapped to lambda by the native strength_to_lambda).
+    strength : in [1e-6, 1e6], weight of the alignment (mapped to lambda by the native strength_to_lambda).
     constraints : DirectionConstraint (or SingularityConstraint / VectorConstraint, dispatched by type).
     vector_constraints : VectorConstraint. With vector constraints and no direction constraints the n-vector
         spline (eq. 8/11) is solved; otherwise the n-direction spline (eq. 9/12), with vector constraints
