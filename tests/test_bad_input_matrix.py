@@ -155,6 +155,15 @@ def _components():
     return np.vstack([V, V + [5, 0, 0], [[10, 0, 0], [11, 0, 0], [10, 1, 0]]]), np.vstack([F, F + 16, [[32, 33, 34]]])
 
 
+def _subnormal_bumps():
+    """A 3 x 3 grid whose z coordinates are subnormal (~1e-313): flat to double precision, yet its curvature
+    alignment and solution come out subnormal."""
+    V, F = mg.grid(3, 3)
+    V = V.copy()
+    V[:, 2] = 1e-313 * (1 + V[:, 0] - V[:, 1] ** 2)
+    return V, F
+
+
 def _scaled_sphere(s):
     def build():
         V, F = mg.icosphere(2)
@@ -298,6 +307,10 @@ CASES: list[Case] = [
     Case("components_and_isolated_triangle", "two grids and an isolated triangle", _components, params=S(n=4),
          constraints=({"face": 0, "direction": [1.0, 0.0, 0.0]}, {"face": 36, "direction": [0.0, 1.0, 0.0]}),
          components=3, outcome="solves per component; a component without data gets its smoothest field"),
+    # found by tests/test_solver_properties.py (long profile): w / |w| overflowed to inf / NaN for subnormal w
+    Case("subnormal_bumps", "grid with subnormal (1e-313) z coordinates, curvature alignment", _subnormal_bumps,
+         params=S(n=2, order=1, align="curvature-max", strength=1e-3), components=1,
+         outcome="solves: unit directions (the subnormal solution is normalized without overflow)"),
     Case("tiny_scale", "icosphere scaled by 1e-6, curvature alignment", _scaled_sphere(1e-6),
          params=S(n=4, align="curvature-max"), constraints=({"face": 0, "direction": _sphere_tangent(0)},),
          components=1, outcome="solves; same field as at scale 1 (strength is scale-free)"),

@@ -238,10 +238,14 @@ def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], 
 
 
 def _normalize(w: np.ndarray) -> np.ndarray:
+    """w / |w| per entry (0 where w = 0). Real and imaginary parts are divided separately: numpy's complex
+    division computes 1 / |w|, which overflows for subnormal w (a flat mesh with subnormal bumps gives a
+    subnormal curvature alignment and solution) and turned such a field into inf / NaN."""
     mag = np.abs(w)
     u = np.zeros_like(w)
     nz = mag > 0
-    u[nz] = w[nz] / mag[nz]
+    u.real[nz] = w.real[nz] / mag[nz]
+    u.imag[nz] = w.imag[nz] / mag[nz]
     return u
 
 
