@@ -114,9 +114,9 @@ class ExactSolver {
     ComplexVector assemble(const ExactSolver& s) const;
   };
   Response schur_solve(const std::vector<ConstraintRow>& rows, const Response& y) const;
-  /// ConstraintError naming the singularities (and constrained faces on their rings) whose ring rows a Schur
+  /// ConstraintError naming the singularities (and constrained faces on their rings) whose ring rows the
   /// solution violates: contradictory constraints the rank test missed (see the .cpp).
-  void check_rows_hold(const Response& w) const;
+  void check_rows_hold(const ComplexVector& w) const;  ///< w per unknown, before snapping
   [[noreturn]] void throw_contradictory(const std::set<std::string>& names, const std::string& note) const;
   ComplexVector apply_inverse(const ComplexVector& b) const;
 
