@@ -262,9 +262,15 @@ void ExactSolver::check_rows_hold(const ComplexVector& w) const {
   // (order 3-4 on flat regions, see the header): a row off by more than 1e-3 of its terms' size is reported.
   // The floor 1e-9 x max|w| accepts a ring on which the spline vanishes (homogeneous rows, no data nearby):
   // there every value is rounding noise of the field and the rows hold absolutely.
+  // Only rings that hold a face constraint can be contradictory: a singularity's own rows are homogeneous
+  // (z = 0 satisfies them), so without a face constraint on the ring a violation is inaccuracy, not conflict.
   const double floor = 1e-9 * (w.size() ? w.cwiseAbs().maxCoeff() : 0.0);
   std::set<std::string> names;
-  for (const auto& [vertex, rows] : constraints_.singularity_rows)
+  for (const auto& [vertex, rows] : constraints_.singularity_rows) {
+    bool constrained_ring = false;
+    for (const auto& row : rows)
+      for (const auto& t : row.terms) constrained_ring |= constraints_.faces.count(t.first) > 0;
+    if (!constrained_ring) continue;
     for (const auto& row : rows) {
       double value = -row.rhs, size = std::abs(row.rhs);
       for (const auto& [f, c] : row.terms) {
@@ -278,6 +284,7 @@ void ExactSolver::check_rows_hold(const ComplexVector& w) const {
           if (constraints_.faces.count(t.first)) names.insert("face " + std::to_string(t.first));
       }
     }
+  }
   if (!names.empty())
     throw_contradictory(names, "; the solution cannot meet the singularity's rows (at energy order 3-4 on a flat "
                                "region this can also be ill-conditioning: try a lower order)");
