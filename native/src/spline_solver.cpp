@@ -410,7 +410,37 @@ ComplexVector ExactSolver::solve() {
     const double scale = count && rest > 0 ? std::sqrt(rest / count) : 1.0;
     w += scale * restrict_to(smoothest_, empty);
   }
-  return to_faces(w);
+  ComplexVector out = to_faces(w);
+  check_singularity_indices(out);
+  return out;
+}
+
+void ExactSolver::check_singularity_indices(const ComplexVector& field) const {
+  // Every pinned singularity must come out with its index. Where the rows are ill-conditioned (an index
+  // whose per-step twist delta is close to pi, energy order 3-4 on a nearly flat region) the solve can miss
+  // it; that is reported instead of returning a field without the requested singularity. A ring on which the
+  // field vanishes (values below 1e-9 of the field: no data reaches it) has no index and is accepted.
+  if (constraints_.singularities.empty()) return;
+  const double floor = 1e-9 * field.cwiseAbs().maxCoeff();
+  const TriangleMesh& mesh = ops_->mesh();
+  for (const auto& [vertex, numerator] : constraints_.singularities) {
+    double ring_max = 0;
+    for (int f : mesh.vertex_ring_faces(vertex)) ring_max = std::max(ring_max, std::abs(field[f]));
+    if (!(ring_max > floor)) continue;
+    int got = 0;
+    const bool defined = ring_index_numerator(*ops_, field, vertex, got);
+    if (defined && got == numerator) continue;
+    std::ostringstream msg;
+    msg << "singularity at vertex " << vertex << ": the solve could not impose index " << numerator << "/"
+        << ops_->n() << " (the field there has ";
+    if (defined)
+      msg << "index " << got << "/" << ops_->n();
+    else
+      msg << "a zero on the ring";
+    msg << "); the system is too ill-conditioned for it (energy order " << order_
+        << ", an index near the end of the vertex's range): use a lower order or an index closer to 0";
+    throw ConstraintError(msg.str());
+  }
 }
 
 }  // namespace nfield

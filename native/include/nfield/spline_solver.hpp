@@ -117,6 +117,8 @@ class ExactSolver {
   /// ConstraintError naming the singularities (and constrained faces on their rings) whose ring rows the
   /// solution violates: contradictory constraints the rank test missed (see the .cpp).
   void check_rows_hold(const ComplexVector& w) const;  ///< w per unknown, before snapping
+  /// ConstraintError if a pinned singularity did not come out with its index (field per face).
+  void check_singularity_indices(const ComplexVector& field) const;
   [[noreturn]] void throw_contradictory(const std::set<std::string>& names, const std::string& note) const;
   ComplexVector apply_inverse(const ComplexVector& b) const;
 
