@@ -416,10 +416,12 @@ ComplexVector ExactSolver::solve() {
 }
 
 void ExactSolver::check_singularity_indices(const ComplexVector& field) const {
-  // Every pinned singularity must come out with its index. Where the rows are ill-conditioned (an index
-  // whose per-step twist delta is close to pi, energy order 3-4 on a nearly flat region) the solve can miss
-  // it; that is reported instead of returning a field without the requested singularity. A ring on which the
-  // field vanishes (values below 1e-9 of the field: no data reaches it) has no index and is accepted.
+  // Every pinned singularity must come out with its index. The ring rows are homogeneous: where the rest of
+  // the design (alignment, constraints) drives the field on the ring nearly to zero, or the rows are
+  // ill-conditioned (an index whose per-step twist is close to pi, energy order 3-4 on a nearly flat region),
+  // rounding decides the ring's index and the solve can miss it; that is reported instead of returning a
+  // field without the requested singularity. A ring on which the field vanishes to rounding level (below
+  // 1e-9 of the field: no data reaches it at all) has no index and is accepted.
   if (constraints_.singularities.empty()) return;
   const double floor = 1e-9 * field.cwiseAbs().maxCoeff();
   const TriangleMesh& mesh = ops_->mesh();
@@ -431,14 +433,17 @@ void ExactSolver::check_singularity_indices(const ComplexVector& field) const {
     const bool defined = ring_index_numerator(*ops_, field, vertex, got);
     if (defined && got == numerator) continue;
     std::ostringstream msg;
+    msg.precision(2);
     msg << "singularity at vertex " << vertex << ": the solve could not impose index " << numerator << "/"
         << ops_->n() << " (the field there has ";
     if (defined)
       msg << "index " << got << "/" << ops_->n();
     else
       msg << "a zero on the ring";
-    msg << "); the system is too ill-conditioned for it (energy order " << order_
-        << ", an index near the end of the vertex's range): use a lower order or an index closer to 0";
+    msg << " and on the ring only " << ring_max / field.cwiseAbs().maxCoeff()
+        << " of its largest magnitude): the rest of the design overrides the singularity, or the system is "
+           "ill-conditioned (energy order "
+        << order_ << "); add a constraint near the vertex, use a lower order, or an index closer to 0";
     throw ConstraintError(msg.str());
   }
 }
