@@ -348,7 +348,7 @@ def test_info_reports_boundary():
 # ---------------------------------------------------------------------------------------- errors
 ARG_ERRORS = {
     "unknown_align": (["--align", "sideways"], ["align", "sideways"]),
-    "n_zero": (["--n", "0"], ["n must be >= 1"]),
+    "n_zero": (["--n", "0"], ["n must be 1..64 (got 0)"]),
     "order_7": (["--order", "7"], ["order", "7"]),
     "strength_negative": (["--strength", "-1"], ["strength", "-1"]),
     "strength_nan": (["--strength", "nan"], ["strength"]),

@@ -312,10 +312,10 @@ def test_energy_is_energy_of_unit_field(sphere):
 
 
 SOLVE_ERRORS = {
-    "n_zero": (dict(n=0), "n (symmetry order) must be >= 1"),
+    "n_zero": (dict(n=0), "n (symmetry order) must be in 1..64 (got 0)"),
     "n_float": (dict(n=4.0), "must be an integer"),
     "order_5": (dict(order=5), "order (energy order) must be in 1..4"),
-    "strength_zero": (dict(strength=0), "strength must be a finite number > 0"),
+    "strength_zero": (dict(strength=0), "strength must be a finite number in [1e-06, 1e+06]"),
     "strength_inf": (dict(strength=float("inf")), "strength"),
     "align_unknown": (dict(align="diagonal"), "unknown align 'diagonal'"),
     "field_without_array": (dict(align="field"), "needs alignment_field"),

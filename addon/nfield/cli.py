@@ -1,6 +1,7 @@
 """Command line: ``python -m nfield {eig,solve,info} ...``.
 
-Exit codes: 0 success; 2 expected failure (bad arguments or files, invalid constraints, solver errors),
+Exit codes: 0 success; 2 expected failure (bad arguments or files, invalid constraints, solver errors,
+out of memory),
 printed as one line ``nfield: error: <reason>`` on stderr; 1 unexpected internal error (one line; set
 NFIELD_DEBUG=1 for the traceback); 130 interrupted.
 """
@@ -60,10 +61,23 @@ def _order(s: str) -> int:
     return v
 
 
+# Admissible ranges, as in nfield.core.solve (kept here so that --help works without the compiled module).
+MAX_N = 64
+MIN_STRENGTH, MAX_STRENGTH = 1e-6, 1e6
+
+
+def _symmetry(s: str) -> int:
+    v = _convert(s, int, f"n must be an integer 1..{MAX_N}")
+    if not 1 <= v <= MAX_N:
+        raise argparse.ArgumentTypeError(f"n must be 1..{MAX_N} (got {v})")
+    return v
+
+
 def _strength(s: str) -> float:
-    v = _convert(s, float, "strength must be a number > 0")
-    if not math.isfinite(v) or v <= 0:
-        raise argparse.ArgumentTypeError(f"strength must be a finite number > 0 (got {s})")
+    must = f"strength must be a finite number in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}]"
+    v = _convert(s, float, must)
+    if not (math.isfinite(v) and MIN_STRENGTH <= v <= MAX_STRENGTH):
+        raise argparse.ArgumentTypeError(f"{must} (got {s})")
     return v
 
 
@@ -87,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Print {\"eigenvalues\": [...]}: the K smallest eigenvalues of S z = lambda M z "
                                    "for n-vector fields (complex form: each eigenvalue once, ascending).")
     e.add_argument("mesh", metavar="MESH", help="mesh file (.obj, .off, .ply)")
-    e.add_argument("--n", type=_int_at_least(1, "n"), required=True, help="symmetry order (>= 1)")
+    e.add_argument("--n", type=_symmetry, required=True, help=f"symmetry order (1..{MAX_N})")
     e.add_argument("--k", type=_int_at_least(1, "k"), default=10, help="number of eigenvalues (default 10)")
     e.add_argument("--weights", choices=WEIGHT_CLI_CHOICES, default="geometric",
                    help="edge weights (default geometric)")
@@ -103,10 +117,10 @@ def build_parser() -> argparse.ArgumentParser:
                               "--out writes one unit 3D direction (the first of the n) per input face: "
                               ".npy (float64 F x 3) or .csv (x,y,z per line).")
     s.add_argument("mesh", metavar="MESH", help="mesh file (.obj, .off, .ply)")
-    s.add_argument("--n", type=_int_at_least(1, "n"), required=True, help="symmetry order (>= 1), e.g. 4")
+    s.add_argument("--n", type=_symmetry, required=True, help=f"symmetry order (1..{MAX_N}), e.g. 4")
     s.add_argument("--order", type=_order, default=2, help="energy order 1..4 (default 2, biharmonic)")
     s.add_argument("--align", choices=ALIGN_CLI_CHOICES, default="none", help="alignment field (default none)")
-    s.add_argument("--strength", type=_strength, default=1.0, help="alignment strength > 0 (default 1)")
+    s.add_argument("--strength", type=_strength, default=1.0, help=f"alignment strength in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}] (default 1)")
     s.add_argument("--weights", choices=WEIGHT_CLI_CHOICES, default="geometric",
                    help="edge weights (default geometric)")
     s.add_argument("--constraints", metavar="C.json", help="direction constraints")
@@ -247,6 +261,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted\n")
         return 130
+    except MemoryError as exc:  # std::bad_alloc in the solver: an expected failure on too large input
+        if debug:
+            traceback.print_exc()
+        sys.stderr.write(f"{PROG}: error: out of memory ({_one_line(str(exc)) or 'MemoryError'}): the mesh or the "
+                         f"number of constraints is too large for this machine\n")
+        return 2
     except (CLIError, ValueError, RuntimeError, OSError, NativeModuleError) as exc:
         if debug:
             traceback.print_exc()

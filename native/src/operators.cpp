@@ -77,6 +77,10 @@ ComplexSparse FieldOperators::energy_matrix(int order) const {
 }
 
 double FieldOperators::energy(const ComplexVector& z, int order) const {
+  if (z.size() != num_unknowns())
+    throw InputError("expected one value per unknown (" + std::to_string(num_unknowns()) + "), got " +
+                     std::to_string(z.size()));
+  if (!z.allFinite()) throw InputError("the field has NaN or infinite values: its energy is undefined");
   if (order == 1) return (z.adjoint() * (harmonic_ * z)).value().real();
   // E_m = S (M^-1 S)^(m-1): apply S and M^-1 alternately instead of forming the product.
   // For even m, z^H E_m z = |L^{m/2} z|_M^2; computing it as a sum keeps it non-negative.

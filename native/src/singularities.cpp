@@ -27,26 +27,27 @@ std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const Co
     throw InputError("field must have one value per face (" + std::to_string(mesh.num_faces()) + ")");
   std::vector<VertexIndex> out;
   for (int v = 0; v < mesh.num_vertices(); ++v) {
-    const auto& faces = mesh.vertex_ring_faces(v);
-    if (faces.empty()) continue;
-    const auto& edges = mesh.vertex_ring_dual_edges(v);
-    const size_t k = faces.size();
-    bool has_zero = false;
-    double sum = 0.0;
-    for (size_t j = 0; j < k; ++j) {
-      const Complex a = field[faces[j]], b = field[faces[(j + 1) % k]];
-      if (a == 0.0 || b == 0.0 || !std::isfinite(std::abs(a)) || !std::isfinite(std::abs(b))) {
-        has_zero = true;
-        break;
-      }
-      sum += std::arg(b * std::conj(ops.transport(edges[j], faces[j]) * a));
-    }
-    if (has_zero) continue;
-    const double turns = (sum + ring_holonomy_angle(ops, v)) / (2.0 * M_PI);
-    const int numerator = static_cast<int>(std::lround(turns));
-    if (numerator != 0) out.push_back({v, numerator});
+    int numerator = 0;
+    if (ring_index_numerator(ops, field, v, numerator) && numerator != 0) out.push_back({v, numerator});
   }
   return out;
+}
+
+bool ring_index_numerator(const FieldOperators& ops, const ComplexVector& field, int v, int& numerator) {
+  const TriangleMesh& mesh = ops.mesh();
+  const auto& faces = mesh.vertex_ring_faces(v);
+  if (faces.empty()) return false;
+  const auto& edges = mesh.vertex_ring_dual_edges(v);
+  const size_t k = faces.size();
+  double sum = 0.0;
+  for (size_t j = 0; j < k; ++j) {
+    const Complex a = field[faces[j]], b = field[faces[(j + 1) % k]];
+    if (a == 0.0 || b == 0.0 || !std::isfinite(std::abs(a)) || !std::isfinite(std::abs(b))) return false;
+    sum += std::arg(b * std::conj(ops.transport(edges[j], faces[j]) * a));
+  }
+  const double turns = (sum + ring_holonomy_angle(ops, v)) / (2.0 * M_PI);
+  numerator = static_cast<int>(std::lround(turns));
+  return true;
 }
 
 std::pair<int, int> singularity_numerator_range(const FieldOperators& ops, int vertex) {

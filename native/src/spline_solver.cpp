@@ -14,8 +14,13 @@
 namespace nfield {
 
 double strength_to_lambda(const FieldOperators& ops, int order, double strength) {
-  if (!std::isfinite(strength) || strength < kMinStrength || strength > kMaxStrength)
-    throw ParameterError("alignment strength must be between 1e-6 and 1e6, got " + std::to_string(strength));
+  if (!std::isfinite(strength) || strength < kMinStrength || strength > kMaxStrength) {
+    // %g, not std::to_string: 1e-7 must not read "0.000000".
+    std::ostringstream msg;
+    msg << "alignment strength must be a finite number between " << kMinStrength << " and " << kMaxStrength
+        << ", got " << strength;
+    throw ParameterError(msg.str());
+  }
   return -strength * ops.eigenvalue_unit(order);
 }
 
@@ -251,19 +256,7 @@ ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>&
                 if (row.terms.front().first == f) name = "singularity at vertex " + std::to_string(vertex);
             names.insert(name);
           }
-        std::ostringstream msg;
-        msg << "contradictory constraints: they cannot all hold at once (involved: ";
-        int shown = 0;
-        for (const auto& n : names) {
-          if (shown++) msg << ", ";
-          if (shown > 8) {
-            msg << "...";
-            break;
-          }
-          msg << n;
-        }
-        msg << ")";
-        throw ConstraintError(msg.str());
+        throw_contradictory(names, "");
       }
     }
   }
@@ -272,6 +265,58 @@ ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>&
   for (int r = 0; r < R; ++r)
     for (const auto& [f, c] : rows[r].terms) w.coefficient[f] -= gamma[r] * c;
   return w;
+}
+
+void ExactSolver::check_rows_hold(const ComplexVector& w) const {
+  // Face constraints are snapped onto their value after the solve; a singularity's ring rows are not, so they
+  // are checked here. A contradictory set whose Schur complement is too ill-conditioned for the rank test in
+  // schur_solve (high order, small lambda: K's null space drowns in rounding) comes back as a field that
+  // violates the rows by O(1). Consistent rows hold to ~1e-12 relative, ~1e-4 in the worst documented case
+  // (order 3-4 on flat regions, see the header): a row off by more than 1e-3 of its terms' size is reported.
+  // The floor 1e-9 x max|w| accepts a ring on which the spline vanishes (homogeneous rows, no data nearby):
+  // there every value is rounding noise of the field and the rows hold absolutely.
+  // Only rings that hold a face constraint can be contradictory: a singularity's own rows are homogeneous
+  // (z = 0 satisfies them), so without a face constraint on the ring a violation is inaccuracy, not conflict.
+  const double floor = 1e-9 * (w.size() ? w.cwiseAbs().maxCoeff() : 0.0);
+  std::set<std::string> names;
+  for (const auto& [vertex, rows] : constraints_.singularity_rows) {
+    bool constrained_ring = false;
+    for (const auto& row : rows)
+      for (const auto& t : row.terms) constrained_ring |= constraints_.faces.count(t.first) > 0;
+    if (!constrained_ring) continue;
+    for (const auto& row : rows) {
+      double value = -row.rhs, size = std::abs(row.rhs);
+      for (const auto& [f, c] : row.terms) {
+        const Complex z = w[unknown_of_face_[f]];
+        value += (std::conj(c) * z).real();
+        size += std::abs(c) * std::abs(z);
+      }
+      if (!(std::abs(value) <= 1e-3 * size + floor)) {
+        names.insert("singularity at vertex " + std::to_string(vertex));
+        for (const auto& t : row.terms)
+          if (constraints_.faces.count(t.first)) names.insert("face " + std::to_string(t.first));
+      }
+    }
+  }
+  if (!names.empty())
+    throw_contradictory(names, "; the solution cannot meet the singularity's rows (at energy order 3-4 on a flat "
+                               "region this can also be ill-conditioning: try a lower order)");
+}
+
+void ExactSolver::throw_contradictory(const std::set<std::string>& names, const std::string& note) const {
+  std::ostringstream msg;
+  msg << "contradictory constraints: they cannot all hold at once (involved: ";
+  int shown = 0;
+  for (const auto& n : names) {
+    if (shown++) msg << ", ";
+    if (shown > 8) {
+      msg << "...";
+      break;
+    }
+    msg << n;
+  }
+  msg << ")" << note;
+  throw ConstraintError(msg.str());
 }
 
 ComplexVector ExactSolver::solve() {
@@ -338,6 +383,7 @@ ComplexVector ExactSolver::solve() {
       if (!pins.update(constraints_, [&](int f) { return w.at(*this, f); })) continue;
       sign_fixed_ = pins.faces;
       ComplexVector field = w.assemble(*this);
+      check_rows_hold(field);
       // Snap constrained faces onto their constraint: removes the rounding of the column combination
       // (relative 1e-12 of the largest term), so constraints hold to the last bit.
       for (const auto& [f, c] : constraints_.faces) {
@@ -377,7 +423,42 @@ ComplexVector ExactSolver::solve() {
     const double scale = count && rest > 0 ? std::sqrt(rest / count) : 1.0;
     w += scale * restrict_to(smoothest_, empty);
   }
-  return to_faces(w);
+  ComplexVector out = to_faces(w);
+  check_singularity_indices(out);
+  return out;
+}
+
+void ExactSolver::check_singularity_indices(const ComplexVector& field) const {
+  // Every pinned singularity must come out with its index. The ring rows are homogeneous: where the rest of
+  // the design (alignment, constraints) drives the field on the ring nearly to zero, or the rows are
+  // ill-conditioned (an index whose per-step twist is close to pi, energy order 3-4 on a nearly flat region),
+  // rounding decides the ring's index and the solve can miss it; that is reported instead of returning a
+  // field without the requested singularity. A ring on which the field vanishes to rounding level (below
+  // 1e-9 of the field: no data reaches it at all) has no index and is accepted.
+  if (constraints_.singularities.empty()) return;
+  const double floor = 1e-9 * field.cwiseAbs().maxCoeff();
+  const TriangleMesh& mesh = ops_->mesh();
+  for (const auto& [vertex, numerator] : constraints_.singularities) {
+    double ring_max = 0;
+    for (int f : mesh.vertex_ring_faces(vertex)) ring_max = std::max(ring_max, std::abs(field[f]));
+    if (!(ring_max > floor)) continue;
+    int got = 0;
+    const bool defined = ring_index_numerator(*ops_, field, vertex, got);
+    if (defined && got == numerator) continue;
+    std::ostringstream msg;
+    msg.precision(2);
+    msg << "singularity at vertex " << vertex << ": the solve could not impose index " << numerator << "/"
+        << ops_->n() << " (the field there has ";
+    if (defined)
+      msg << "index " << got << "/" << ops_->n();
+    else
+      msg << "a zero on the ring";
+    msg << " and on the ring only " << ring_max / field.cwiseAbs().maxCoeff()
+        << " of its largest magnitude): the rest of the design overrides the singularity, or the system is "
+           "ill-conditioned (energy order "
+        << order_ << "); add a constraint near the vertex, use a lower order, or an index closer to 0";
+    throw ConstraintError(msg.str());
+  }
 }
 
 }  // namespace nfield

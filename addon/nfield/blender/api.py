@@ -34,6 +34,11 @@ __all__ = [
 ]
 
 _SYMMETRIES = (1, 2, 3, 4, 6)
+#: the solver's admissible strengths (nfield.core.solve.MIN_STRENGTH / MAX_STRENGTH)
+MIN_STRENGTH, MAX_STRENGTH = 1e-6, 1e6
+#: the settings configure() may change (restored when a solve with new settings fails)
+_SETTING_KEYS = ("symmetry", "energy", "alignment", "alignment_attribute", "strength", "solver_mode", "spectral_k",
+                 "live_update")
 
 
 def _check_object(obj):
@@ -96,9 +101,13 @@ def configure(obj, *, n: int | None = None, order: int | None = None, align: str
     if alignment_attribute is not None:
         values["alignment_attribute"] = alignment_attribute
     if strength is not None:
-        s = float(strength)
-        if not math.isfinite(s) or s <= 0:
-            raise NFieldError(f"strength must be a finite number > 0 (got {strength!r})")
+        try:
+            s = float(strength)
+        except (TypeError, ValueError):
+            s = math.nan
+        if isinstance(strength, bool) or not (math.isfinite(s) and MIN_STRENGTH <= s <= MAX_STRENGTH):
+            raise NFieldError(f"strength must be a finite number in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}] "
+                              f"(got {strength!r})")
         values["strength"] = s
     if mode is not None:
         if str(mode).lower() not in ("exact", "spectral"):
@@ -122,6 +131,36 @@ def configure(obj, *, n: int | None = None, order: int | None = None, align: str
 def updates_suspended() -> bool:
     """True while configure() changes settings (property update callbacks must not re-solve then)."""
     return _updating
+
+
+def snapshot(obj) -> tuple:
+    """The user's settings and design (constraints, singularities, list positions) of `obj`, for restore()."""
+    st = obj.nfield
+    settings = tuple(getattr(st, k) for k in _SETTING_KEYS)
+    return settings, _snapshot_design(st), (st.active_constraint_index, st.active_singularity_index)
+
+
+def restore(obj, saved: tuple) -> bool:
+    """Put back what snapshot() saw, without re-solving (update callbacks are suspended). Only what differs is
+    written. Returns True if anything was changed."""
+    global _updating
+    st = obj.nfield
+    settings, design, active = saved
+    changed = False
+    _updating = True
+    try:
+        for key, value in zip(_SETTING_KEYS, settings):
+            if getattr(st, key) != value:
+                setattr(st, key, value)
+                changed = True
+        if _snapshot_design(st) != design:
+            _restore_design(st, design)
+            changed = True
+        if (st.active_constraint_index, st.active_singularity_index) != active:
+            st.active_constraint_index, st.active_singularity_index = active
+    finally:
+        _updating = False
+    return changed
 
 
 # ------------------------------------------------------------------------------------------ constraints
@@ -170,6 +209,10 @@ def add_constraint(obj, face: int, direction: Iterable[float], kind: str = "dire
     length = float(np.linalg.norm(dn))
     if length == 0.0:
         raise NFieldError(f"direction of the constraint on face {face} is the zero vector")
+    core_mesh = session_cache.get_entry(obj, arrays).mesh  # NFieldError if the mesh cannot be used
+    if not core_mesh.native.face_active[core_mesh.face_triangle(face)]:
+        raise NFieldError(f"face {face} is excluded from the field (degenerate: zero area, repeated vertex, "
+                          f"needle or duplicate face): it cannot carry a constraint")
     normal = arrays.polygon_normals[face]
     if np.linalg.norm(dn - normal * float(dn @ normal)) < 1e-6 * length:
         raise NFieldError(f"direction {list(d)} of the constraint on face {face} is parallel to the face normal "
@@ -242,6 +285,11 @@ def add_singularity(obj, vertex: int, index: float):
                           f"(for n = {n} use k/{n}, e.g. {round(num) / n!r})")
     if round(num) == 0:
         raise NFieldError(f"singularity index at vertex {vertex} is 0; use remove_singularity to unpin it")
+    lo, hi = _numerator_range(obj, arrays, vertex, n)
+    if not lo <= round(num) <= hi:
+        raise NFieldError(f"vertex {vertex} cannot carry index {round(num)}/{n}: the indices it can carry are "
+                          f"{lo}/{n} .. {hi}/{n} (|index - K/2pi| < k/(2n) for its ring of k faces and angle "
+                          f"defect K)")
     item = next((s for s in st.singularities if s.vertex == vertex and not s.stale), None)
     if item is None:
         item = st.singularities.add()
@@ -251,6 +299,28 @@ def add_singularity(obj, vertex: int, index: float):
     item.stale = False
     item.position = arrays.vertices[vertex]
     return item
+
+
+def _numerator_range(obj, arrays, vertex: int, n: int) -> tuple[int, int]:
+    """The index numerators (index = numerator / n) vertex can carry, from the solver's own rule
+    (nfield._native.singularity_numerator_range). NFieldError for a boundary / non-manifold / unused vertex."""
+    from ..core import native
+
+    entry = session_cache.get_entry(obj, arrays)
+    key = ("index_operators", n)
+    ops = entry.extra.get(key)
+    if ops is None:
+        for old in [k for k in entry.extra if isinstance(k, tuple) and k[:1] == ("index_operators",)]:
+            del entry.extra[old]  # keep one set of operators per object
+        try:
+            ops = entry.extra[key] = native().FieldOperators(entry.mesh.native, n, "geometric")
+        except ValueError as exc:
+            raise NFieldError(str(exc)) from None
+    try:
+        lo, hi = native().singularity_numerator_range(ops, vertex)
+    except ValueError as exc:
+        raise NFieldError(str(exc)) from None
+    return int(lo), int(hi)
 
 
 def remove_singularity(obj, vertex: int) -> None:
@@ -286,18 +356,25 @@ def solve(obj, *, n: int | None = None, order: int | None = None, align: str | N
 
     if background.busy(obj):
         raise NFieldError(f"'{obj.name}' is being solved in the background: wait for it to finish or press Esc")
-    configure(obj, n=n, order=order, align=align, strength=strength, mode=mode, k=k,
-              alignment_attribute=alignment_attribute)
-    arrays, _ = sync(obj)
-    st = obj.nfield
-    entry = session_cache.get_entry(obj, arrays)
-    session = session_cache.ensure_session(obj, entry, progress=progress)
+    arrays, _ = sync(obj)  # first: a mesh change remaps the design before anything is saved
+    saved = snapshot(obj)
     try:
-        result = session.solve()
-    except (ValueError, RuntimeError, MemoryError) as exc:
-        msg = str(exc)
-        st.last_message = f"Solve failed: {msg}"
-        raise NFieldError(msg) from None
+        configure(obj, n=n, order=order, align=align, strength=strength, mode=mode, k=k,
+                  alignment_attribute=alignment_attribute)
+        st = obj.nfield
+        entry = session_cache.get_entry(obj, arrays)
+        session = session_cache.ensure_session(obj, entry, progress=progress)
+        try:
+            result = session.solve()
+        except (ValueError, RuntimeError) as exc:
+            if type(exc).__name__ == "Cancelled":
+                raise
+            raise NFieldError(str(exc)) from None
+    except BaseException as exc:
+        # A failed or cancelled solve changes nothing the user set: settings given here go back.
+        restore(obj, saved)
+        obj.nfield.last_message = f"Solve failed: {exc}"
+        raise
     _store_result(obj, entry, result)
     if write if write is not None else st.write_attributes:
         attributes.write(obj, arrays, result, st.n)

@@ -43,24 +43,47 @@ class _NFieldObjectOperator:
             self.report({"ERROR"}, problem)
         return problem is not None
 
+    #: snapshot the object's settings and design before running and put them back if the operator fails
+    #: (a cancelled operator gets no undo step, so a half-done edit would otherwise stay)
+    keeps_design_on_failure = False
+
     def run(self, context, fn, *, solve_after: bool = False):
-        """fn(obj) -> message or None, then a re-solve if `solve_after` and Live Update is on."""
+        """fn(obj) -> message or None, then a re-solve if `solve_after` and Live Update is on.
+
+        Every failure of the core or the compiled solver becomes an ERROR report and {'CANCELLED'}:
+        ValueError (bad input, constraints, parameters: the message as is), RuntimeError (numerical failure,
+        or Cancelled), MemoryError (std::bad_alloc in the solver)."""
         obj = context.active_object
         if self.report_native_error():
             return {"CANCELLED"}
+        saved = None
         try:
+            if self.keeps_design_on_failure:
+                api.sync(obj)  # a mesh change remaps the design first: that remapping is kept
+                saved = api.snapshot(obj)
             message = fn(obj)
             if solve_after and obj.nfield.live_update:
                 api.solve(obj)
-        except ValueError as exc:  # NFieldError and the core's ValueErrors
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        except RuntimeError as exc:
-            self.report({"ERROR"}, f"numerical failure: {exc}")
+        except (ValueError, RuntimeError, MemoryError) as exc:
+            if saved is not None:
+                api.restore(obj, saved)
+            self.report({"ERROR"}, failure_message(exc))
             return {"CANCELLED"}
         if message:
             self.report({"INFO"}, message)
         return {"FINISHED"}
+
+
+def failure_message(exc: BaseException) -> str:
+    """The report text for an exception from the core / the compiled solver."""
+    if isinstance(exc, MemoryError):
+        return (f"out of memory in the solver ({exc or 'MemoryError'}): the mesh or the number of constraints is "
+                f"too large for this machine")
+    if type(exc).__name__ == "Cancelled":
+        return f"cancelled: {exc}"
+    if isinstance(exc, ValueError):  # NFieldError and the core's ValueErrors: the message names the problem
+        return str(exc)
+    return f"numerical failure: {exc}"
 
 
 def _active_item(items, active_index: int, what: str):
@@ -76,6 +99,7 @@ class NFIELD_OT_solve(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.solve"
     bl_label = "Solve Field"
+    keeps_design_on_failure = True
 
     def execute(self, context):
         def fn(obj):
@@ -108,6 +132,7 @@ class NFIELD_OT_write_attributes(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.write_attributes"
     bl_label = "Write Attributes"
+    keeps_design_on_failure = True
 
     def execute(self, context):
         return self.run(context, lambda obj: "nfield: wrote " + ", ".join(api.write_attributes(obj)))
@@ -118,6 +143,7 @@ class NFIELD_OT_constraint_add(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.constraint_add"
     bl_label = "Add Constraint"
+    keeps_design_on_failure = True
 
     face: IntProperty(name="Face", min=0, description="Polygon index")
     direction: FloatVectorProperty(name="Direction", size=3, default=(1.0, 0.0, 0.0), subtype="XYZ")
@@ -133,6 +159,7 @@ class NFIELD_OT_constraint_remove(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.constraint_remove"
     bl_label = "Remove Constraint"
+    keeps_design_on_failure = True
 
     face: IntProperty(name="Face", default=-1, min=-1, description="Polygon index (-1: the active constraint)")
 
@@ -152,6 +179,7 @@ class NFIELD_OT_constraint_clear(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.constraint_clear"
     bl_label = "Clear Constraints"
+    keeps_design_on_failure = True
 
     stale_only: BoolProperty(name="Stale Only", default=False)
 
@@ -165,27 +193,15 @@ class NFIELD_OT_singularity_add(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.singularity_add"
     bl_label = "Add Singularity"
+    keeps_design_on_failure = True
 
     vertex: IntProperty(name="Vertex", min=0)
     numerator: IntProperty(name="Index x n", default=1, description="Singularity index times n (e.g. 1 = +1/n)")
 
     def execute(self, context):
-        def fn(obj):
-            st = obj.nfield
-            old = {s.vertex: s.numerator for s in st.singularities if not s.stale}
-            api.add_singularity(obj, self.vertex, self.numerator / st.n)
-            if st.live_update:
-                try:
-                    api.solve(obj)
-                except ValueError:
-                    # invalid for this vertex (e.g. boundary): restore the previous state, then report
-                    if self.vertex in old:
-                        api.add_singularity(obj, self.vertex, old[self.vertex] / st.n)
-                    else:
-                        api.remove_singularity(obj, self.vertex)
-                    raise
-
-        return self.run(context, fn)
+        # a failed live solve puts the previous singularities back (keeps_design_on_failure)
+        return self.run(context, lambda obj: api.add_singularity(obj, self.vertex, self.numerator / obj.nfield.n)
+                        and None, solve_after=True)
 
 
 class NFIELD_OT_singularity_remove(_NFieldObjectOperator, bpy.types.Operator):
@@ -193,6 +209,7 @@ class NFIELD_OT_singularity_remove(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.singularity_remove"
     bl_label = "Remove Singularity"
+    keeps_design_on_failure = True
 
     vertex: IntProperty(name="Vertex", default=-1, min=-1)
 
@@ -272,6 +289,7 @@ class NFIELD_OT_layer_release(_NFieldObjectOperator, bpy.types.Operator):
 
     bl_idname = "nfield.layer_release"
     bl_label = "Release Layer"
+    keeps_design_on_failure = True
 
     index: IntProperty(name="Layer", default=-1, min=-1, description="Layer index (-1: the active layer)")
 

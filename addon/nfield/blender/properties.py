@@ -148,7 +148,7 @@ class NFieldSettings(PropertyGroup):
         name="Alignment Attribute", default="",
         description="Face-domain FLOAT_VECTOR attribute to align to (Alignment = Face Attribute)",
         update=_update_setting)
-    strength: FloatProperty(name="Strength", default=1.0, min=1e-4, soft_max=100.0,
+    strength: FloatProperty(name="Strength", default=1.0, min=1e-4, max=1e6, soft_max=100.0,
                             description="Alignment strength (weight of the alignment term; used when Alignment is not None)", update=_update_setting)
     solver_mode: EnumProperty(name="Solver", items=SOLVER_MODE_ITEMS, default="EXACT", update=_update_setting)
     spectral_k: IntProperty(name="Eigenfields", default=500, min=2, soft_max=2000,

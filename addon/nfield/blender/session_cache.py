@@ -336,8 +336,18 @@ def ensure_session(obj, entry: CacheEntry, progress=None):
             raise NFieldError(str(exc)) from None
         entry.extra["settings"] = kw
         entry.extra["design_state"] = None
-    elif _settings_differ(entry.extra.get("settings"), kw):
+    elif hasattr(entry.session, "progress"):
+        # the callback belongs to this call only: a cached session must not keep (and later call) an old one,
+        # e.g. one that cancelled
+        entry.session.progress = progress
+    if entry.session is not None and _settings_differ(entry.extra.get("settings"), kw):
         try:
+            if (entry.extra.get("settings") or {}).get("n", kw["n"]) != kw["n"]:
+                # the design stores index numerators (index = numerator / n): a new n changes every index, so
+                # the session's singularities go and apply_design below sets them for the new n
+                for c in entry.session.constraints:
+                    if hasattr(c, "vertex") and not hasattr(c, "face"):
+                        entry.session.remove_singularity(c.vertex)
             entry.session.configure(**kw)
         except ValueError as exc:
             raise NFieldError(str(exc)) from None

@@ -214,16 +214,22 @@ def _remove_design_item(op, context, remove, key, done_message):
     """`remove(obj, key)` (an api removal), then re-solve (Live Update) or just redraw the overlay; reports
     like the other tool operators."""
     from . import api
+    from .operators import failure_message
 
     obj = context.active_object
+    saved = None
     try:
+        api.sync(obj)
+        saved = api.snapshot(obj)
         remove(obj, key)
         if obj.nfield.live_update:
             api.solve(obj)
         else:
             api.notify_overlay(obj)
-    except ValueError as exc:
-        op.report({"ERROR"}, str(exc))
+    except (ValueError, RuntimeError, MemoryError) as exc:
+        if saved is not None:
+            api.restore(obj, saved)  # a failed re-solve keeps the removed item
+        op.report({"ERROR"}, failure_message(exc))
         return {"CANCELLED"}
     op.report({"INFO"}, done_message)
     return {"FINISHED"}
@@ -240,10 +246,12 @@ class _ModalViewportTool:
 
     def _open_session(self, obj) -> bool:
         """Get (api, entry, session) with a solved field; False (reported) if the design cannot be solved."""
+        from .operators import failure_message
+
         try:
             self._api, self._entry, self._session = _session(obj)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
+        except (ValueError, RuntimeError, MemoryError) as exc:
+            self.report({"ERROR"}, failure_message(exc))
             return False
         return True
 
@@ -285,6 +293,7 @@ class NFIELD_OT_constraint_tool(_ModalViewportTool, Operator):
         self._dragged = False
         item = _constraint_item(obj, face)
         self._before = None if item is None else (item.kind, tuple(item.direction))
+        self._accepted = self._before  # the last (kind, direction) the solver accepted in this drag
         self._before_result = self._entry.result
         self._target = None
         self._solved_target = None
@@ -306,8 +315,22 @@ class NFIELD_OT_constraint_tool(_ModalViewportTool, Operator):
         self._target = d.normalized()
 
     def _apply(self, context, obj, direction, kind="DIRECTION"):
-        """Store `direction` in the design and re-solve through the session's re-aim path."""
+        """Re-solve through the session's re-aim path with `direction`; store it in the design only if the
+        solve succeeds (otherwise the session goes back to the last accepted direction; returns False)."""
         face = self._face
+        t0 = time.perf_counter()
+        try:
+            if kind == "VECTOR":
+                self._session.set_vector(face, tuple(direction))
+            else:
+                self._session.set_direction(face, tuple(direction))
+            result = self._session.solve()
+        except (ValueError, RuntimeError, MemoryError) as exc:
+            from .operators import failure_message
+
+            self._session_back_to(self._accepted)
+            self.report({"WARNING"}, failure_message(exc))
+            return False
         item = _constraint_item(obj, face)
         if item is None:
             item = obj.nfield.constraints.add()
@@ -316,16 +339,7 @@ class NFIELD_OT_constraint_tool(_ModalViewportTool, Operator):
             item.centroid = obj.data.polygons[face].center
         item.kind = kind
         item.direction = tuple(direction)
-        t0 = time.perf_counter()
-        try:
-            if kind == "VECTOR":
-                self._session.set_vector(face, tuple(direction))
-            else:
-                self._session.set_direction(face, tuple(direction))
-            result = self._session.solve()
-        except (ValueError, RuntimeError) as exc:
-            self.report({"WARNING"}, str(exc))
-            return False
+        self._accepted = (kind, tuple(direction))
         _store(self._api, obj, self._entry, result)
         ms = (time.perf_counter() - t0) * 1e3
         d = tuple(round(x, 3) for x in direction)
@@ -365,6 +379,19 @@ class NFIELD_OT_constraint_tool(_ModalViewportTool, Operator):
             return self._finish(context, cancelled=True)
         return {"RUNNING_MODAL"}
 
+    def _session_back_to(self, state):
+        """Put the session's constraint on this face back to `state` ((kind, direction) or None)."""
+        face = self._face
+        try:
+            if state is None:
+                if any(getattr(c, "face", None) == face for c in self._session.constraints):
+                    self._session.remove(face)
+            else:
+                kind, d = state
+                (self._session.set_vector if kind == "VECTOR" else self._session.set_direction)(face, d)
+        except ValueError:
+            pass
+
     def _restore(self, obj):
         face = self._face
         st = obj.nfield
@@ -392,7 +419,7 @@ class NFIELD_OT_constraint_tool(_ModalViewportTool, Operator):
             return  # the field never changed
         try:
             result = self._session.solve()
-        except (ValueError, RuntimeError):
+        except (ValueError, RuntimeError, MemoryError):
             result = self._before_result
         if result is not None:
             _store(self._api, obj, self._entry, result)
@@ -528,7 +555,7 @@ class NFIELD_OT_singularity_tool(_ModalViewportTool, Operator):
         try:
             self._session.set_singularity(self._vertex, k / n)
             result = self._session.solve()
-        except (ValueError, RuntimeError) as exc:
+        except (ValueError, RuntimeError, MemoryError) as exc:
             self._header(context, obj, f"{k}/{n} refused: {exc}")
             # put the session back to the last accepted numerator
             try:
@@ -610,7 +637,7 @@ class NFIELD_OT_singularity_tool(_ModalViewportTool, Operator):
             _store(self._api, obj, self._entry, self._session.solve())
             if obj.nfield.write_attributes:
                 self._api.write_attributes(obj, self._entry.result)
-        except (ValueError, RuntimeError) as exc:
+        except (ValueError, RuntimeError, MemoryError) as exc:
             self.report({"WARNING"}, str(exc))
 
     def _restore(self, obj):
@@ -631,7 +658,7 @@ class NFIELD_OT_singularity_tool(_ModalViewportTool, Operator):
         if self._changed:
             try:
                 _store(self._api, obj, self._entry, self._session.solve())
-            except (ValueError, RuntimeError):
+            except (ValueError, RuntimeError, MemoryError):
                 if self._before_result is not None:
                     _store(self._api, obj, self._entry, self._before_result)
 

@@ -25,6 +25,11 @@ WEIGHT_CHOICES = ("geometric", "combinatorial")
 TANGENT_TOLERANCE = 1e-6
 #: |index * n - round(index * n)| allowed for a singularity index
 INDEX_TOLERANCE = 1e-9
+#: symmetry orders the native operators accept (FieldOperators: 1..64)
+MAX_N = 64
+#: admissible alignment strengths (kMinStrength, kMaxStrength of spline_solver.hpp): lambda = -strength
+#: (4 pi/A)^m stays negative, far below the paper's bound lambda_hat_1^m, so V stays positive definite
+MIN_STRENGTH, MAX_STRENGTH = 1e-6, 1e6
 
 
 @dataclass
@@ -107,7 +112,7 @@ def _check_int(value: Any, name: str, lo: int, hi: int | None = None) -> int:
 
 
 def _check_n(n: Any) -> int:
-    return _check_int(n, "n (symmetry order)", 1)
+    return _check_int(n, "n (symmetry order)", 1, MAX_N)
 
 
 def _check_order(order: Any) -> int:
@@ -121,14 +126,15 @@ def _check_weights(weights: Any) -> str:
 
 
 def _check_strength(strength: Any) -> float:
+    must = f"strength must be a finite number in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}]"
     if isinstance(strength, bool):
-        raise ValueError(f"strength must be a number > 0, got {strength!r}")
+        raise ValueError(f"{must}, got {strength!r}")
     try:
         s = float(strength)
     except (TypeError, ValueError):
-        raise ValueError(f"strength must be a number > 0, got {strength!r}") from None
-    if not math.isfinite(s) or s <= 0:
-        raise ValueError(f"strength must be a finite number > 0 (got {strength!r})")
+        raise ValueError(f"{must}, got {strength!r}") from None
+    if not (math.isfinite(s) and MIN_STRENGTH <= s <= MAX_STRENGTH):
+        raise ValueError(f"{must} (got {strength!r})")
     return s
 
 
@@ -179,13 +185,22 @@ def _face_vectors(mesh: Mesh, items: Sequence, attr: str, label: str):
             raise ValueError(f"{label} on {what}: the face is excluded from the field (degenerate: zero area, "
                              f"repeated vertex, needle or duplicate face)")
         d = np.asarray(getattr(c, attr), dtype=np.float64)
-        length = float(np.linalg.norm(d))
-        if length == 0.0:
+        # Tangency is judged on d / max|d_i|: the norm of d itself under- or overflows for tiny (1e-300) or
+        # huge (1e308) components, which are valid directions.
+        big = float(np.abs(d).max())
+        if big == 0.0:
             raise ValueError(f"{label} on face {c.face}: the {attr} is the zero vector")
-        proj = d - normals[t] * float(d @ normals[t])
+        unit = d / big
+        length = float(np.linalg.norm(unit))
+        proj = unit - normals[t] * float(unit @ normals[t])
         if float(np.linalg.norm(proj)) < TANGENT_TOLERANCE * length:
             raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is parallel to the face "
                              f"normal (it has no tangent component)")
+        if attr == "direction":
+            d = unit / length  # only the direction counts: keep the native projection in range
+        elif not math.isfinite(big * length):
+            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is too long (its length "
+                             f"overflows a double)")
         tris[k] = t
         vecs[k] = d
     return tris, vecs
@@ -225,10 +240,14 @@ def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], 
 
 
 def _normalize(w: np.ndarray) -> np.ndarray:
+    """w / |w| per entry (0 where w = 0). Real and imaginary parts are divided separately: numpy's complex
+    division computes 1 / |w|, which overflows for subnormal w (a flat mesh with subnormal bumps gives a
+    subnormal curvature alignment and solution) and turned such a field into inf / NaN."""
     mag = np.abs(w)
     u = np.zeros_like(w)
     nz = mag > 0
-    u[nz] = w[nz] / mag[nz]
+    u.real[nz] = w.real[nz] / mag[nz]
+    u.imag[nz] = w.imag[nz] / mag[nz]
     return u
 
 
@@ -285,11 +304,11 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
     """Design an n-direction field (n-field spline, paper sections 4-7).
 
     mesh : nfield.core.Mesh.
-    n : symmetry order >= 1 (1 vector field, 2 line field, 4 cross field ...).
+    n : symmetry order 1..64 (1 vector field, 2 line field, 4 cross field ...).
     order : energy order 1..4 (1 harmonic, 2 biharmonic ...).
     align : "none" | "curvature-max" | "curvature-min" | "field" (then `alignment_field` is an (F, 3) array
         of 3D vectors per input face; their tangent length weights the alignment).
-    strength : > 0, weight of the alignment (mapped to lambda by the native strength_to_lambda).
+    strength : in [1e-6, 1e6], weight of the alignment (mapped to lambda by the native strength_to_lambda).
     constraints : DirectionConstraint (or SingularityConstraint / VectorConstraint, dispatched by type).
     vector_constraints : VectorConstraint. With vector constraints and no direction constraints the n-vector
         spline (eq. 8/11) is solved; otherwise the n-direction spline (eq. 9/12), with vector constraints

@@ -26,6 +26,10 @@ struct VertexIndex {
 /// skipped (their index is undefined). `field` is per face.
 std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const ComplexVector& field);
 
+/// Index numerator of `field` (per face) at interior vertex v; false if a ring value is zero or not finite
+/// (the index is undefined there). The same rule as singularity_indices.
+bool ring_index_numerator(const FieldOperators& ops, const ComplexVector& field, int vertex, int& numerator);
+
 /// Angle in (-pi, pi] of the product of transports around the ring of an interior vertex.
 double ring_holonomy(const FieldOperators& ops, int vertex);
 

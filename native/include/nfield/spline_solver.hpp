@@ -48,6 +48,8 @@
 #pragma once
 #include <Eigen/CholmodSupport>
 #include <memory>
+#include <set>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -112,6 +114,12 @@ class ExactSolver {
     ComplexVector assemble(const ExactSolver& s) const;
   };
   Response schur_solve(const std::vector<ConstraintRow>& rows, const Response& y) const;
+  /// ConstraintError naming the singularities (and constrained faces on their rings) whose ring rows the
+  /// solution violates: contradictory constraints the rank test missed (see the .cpp).
+  void check_rows_hold(const ComplexVector& w) const;  ///< w per unknown, before snapping
+  /// ConstraintError if a pinned singularity did not come out with its index (field per face).
+  void check_singularity_indices(const ComplexVector& field) const;
+  [[noreturn]] void throw_contradictory(const std::set<std::string>& names, const std::string& note) const;
   ComplexVector apply_inverse(const ComplexVector& b) const;
 
   ComplexVector to_faces(const ComplexVector& per_unknown) const;
