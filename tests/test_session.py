@@ -677,11 +677,17 @@ def test_cancel_leaves_session_usable():
         calls.append(fraction)
         raise Boom("callback failed")
 
-    for cb in (refuse, refuse_at_end, boom):
+    def interrupt(fraction):
+        calls.append(fraction)
+        raise KeyboardInterrupt
+
+    # An exception in the callback cancels too, and comes back as itself (bindings.cpp run_with_progress).
+    for cb, expected in ((refuse, Cancelled), (refuse_at_end, Cancelled), (boom, Boom),
+                         (interrupt, KeyboardInterrupt)):
         calls.clear()
         s.progress = cb
         s.configure(strength=2.0)
-        with pytest.raises(Cancelled):  # an exception in the callback also cancels (bindings.cpp)
+        with pytest.raises(expected):
             s.solve()
         assert calls, "the progress callback was never called"
         assert s.field is field0 and np.array_equal(s.field.raw_solution, w0)

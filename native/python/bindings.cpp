@@ -9,6 +9,8 @@
 
 #include <climits>
 #include <cmath>
+#include <memory>
+#include <optional>
 
 #include "nfield/curvature.hpp"
 #include "nfield/errors.hpp"
@@ -91,20 +93,51 @@ py::array_t<double> from_eigen(const Eigen::VectorXd& v) {
   return out;
 }
 
-/// Wrap a Python progress callable: called with the GIL held; a False return or an exception cancels.
-ProgressCallback wrap_progress(const py::object& callback) {
-  if (callback.is_none()) return {};
-  return [callback](double fraction) -> bool {
+/// A Python progress callable for the native code: called with the GIL held; False cancels. An exception
+/// raised by the callable (KeyboardInterrupt too) cancels the computation and is then re-raised as itself
+/// by run_with_progress instead of becoming Cancelled.
+struct PythonProgress {
+  ProgressCallback callback;
+  std::shared_ptr<std::optional<py::error_already_set>> error = std::make_shared<std::optional<py::error_already_set>>();
+};
+
+PythonProgress wrap_progress(const py::object& callable) {
+  PythonProgress p;
+  if (callable.is_none()) return p;
+  auto error = p.error;
+  p.callback = [callable, error](double fraction) -> bool {
     py::gil_scoped_acquire gil;
     try {
-      py::object r = callback(fraction);
+      py::object r = callable(fraction);
       return r.is_none() || r.cast<bool>();
     } catch (py::error_already_set& e) {
-      e.restore();
-      PyErr_Clear();
+      error->emplace(std::move(e));
+      return false;
+    } catch (const py::cast_error&) {
+      error->emplace(py::error_already_set([] {
+        PyErr_SetString(PyExc_TypeError, "progress callback must return a bool or None");
+        return py::error_already_set();
+      }()));
       return false;
     }
   };
+  return p;
+}
+
+/// Runs `work` (which releases the GIL itself) and turns a cancel caused by an exception of the progress
+/// callable back into that exception.
+template <class Work>
+auto run_with_progress(const PythonProgress& progress, Work&& work) -> decltype(work()) {
+  try {
+    return work();
+  } catch (const Cancelled&) {
+    if (progress.error->has_value()) {
+      py::error_already_set e = std::move(**progress.error);
+      progress.error->reset();
+      throw e;
+    }
+    throw;
+  }
 }
 
 py::dict report_to_dict(const MeshReport& r) {
@@ -354,12 +387,11 @@ PYBIND11_MODULE(_native, m) {
       }, py::arg("vertex"));
 
   m.def("eigen", [](std::shared_ptr<FieldOperators> ops, int k, const py::object& progress) {
-    const ProgressCallback cb = wrap_progress(progress);
-    Eigenpairs pairs;
-    {
+    const PythonProgress cb = wrap_progress(progress);
+    const Eigenpairs pairs = run_with_progress(cb, [&] {
       py::gil_scoped_release release;
-      pairs = lowest_eigenpairs(*ops, k, cb);
-    }
+      return lowest_eigenpairs(*ops, k, cb.callback);
+    });
     const int F = ops->mesh().num_faces();
     py::array_t<std::complex<double>> vecs({static_cast<py::ssize_t>(F), static_cast<py::ssize_t>(k)});
     auto* d = vecs.mutable_data();
@@ -432,7 +464,7 @@ PYBIND11_MODULE(_native, m) {
                        const py::object& frozen_faces, const py::object& frozen_values) {
              const ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
-             const ProgressCallback cb = wrap_progress(progress);
+             const PythonProgress cb = wrap_progress(progress);
              std::vector<std::pair<int, Complex>> frozen;
              if (!frozen_faces.is_none()) {
                const IndexArray faces = frozen_faces.cast<IndexArray>();
@@ -446,8 +478,10 @@ PYBIND11_MODULE(_native, m) {
                  frozen.emplace_back(static_cast<int>(f), values.data()[i]);
                }
              }
-             py::gil_scoped_release release;
-             return new ExactSolver(ops, order, strength, a, k, lambda_override, cb, frozen);
+             return run_with_progress(cb, [&] {
+               py::gil_scoped_release release;
+               return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, frozen);
+             });
            }),
            py::arg("ops"), py::arg("order") = 2, py::arg("strength") = 1.0, py::arg("alignment") = py::none(),
            py::arg("kind") = "direction", py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN(),
@@ -488,9 +522,11 @@ PYBIND11_MODULE(_native, m) {
         options.tolerance = tolerance;
         if (slice_size < 0) throw ParameterError("slice_size must be >= 0 (0: automatic)");
         options.slice_size = slice_size;
-        const ProgressCallback cb = wrap_progress(progress);
-        py::gil_scoped_release release;
-        return std::make_shared<SpectralBasis>(SpectralBasis::compute(*ops, k, options, cb));
+        const PythonProgress cb = wrap_progress(progress);
+        return run_with_progress(cb, [&] {
+          py::gil_scoped_release release;
+          return std::make_shared<SpectralBasis>(SpectralBasis::compute(*ops, k, options, cb.callback));
+        });
       }, py::arg("ops"), py::arg("k"), py::arg("precision") = "double", py::arg("progress") = py::none(),
          py::arg("tolerance") = 1e-10, py::arg("slice_size") = 0,
          "Compute the basis (expensive; GIL released; progress(fraction) returning False cancels)")
