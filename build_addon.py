@@ -421,7 +421,7 @@ def cmd_bench(bench_args: list[str]) -> int:
 SANITIZER_TESTS = [
     "test_mesh_ingestion.py", "test_operators.py", "test_spectrum.py", "test_singularities.py",
     "test_splines.py", "test_curvature.py", "test_streamlines.py", "test_session.py", "test_core_api.py",
-    "test_cli.py",
+    "test_cli.py", "test_fuzz_regressions.py",
 ]
 # Deselected under the sanitizers (pytest -k): the same code paths as the rest of the suite, on the 20k-70k
 # face meshes, where ASan/UBSan make them about 6x slower (together a quarter of the run). The ingestion of
