@@ -4,7 +4,7 @@
 // rather than on syntax (the parse_* targets cover files). Layout; missing bytes read as zero:
 //   byte 0   bits 0-2: symmetry n (kSymmetries, including the invalid 0); bit 3: combinatorial weights;
 //            bit 4: also solve a small spline; bits 5-7: coordinate scale (kScales, some outside the
-//            supported extent [1e-60, 1e60])
+//            supported extent [1e-12, 1e12])
 //   byte 1   solver setup: bits 0-1 energy order - 1, bit 2 n-vector spline (else n-direction),
 //            bit 3 a singularity at the first interior vertex, bits 4-7 constraint direction angle
 //   byte 2   number of vertices V = 1 + byte % kMaxVertices
@@ -30,7 +30,9 @@ namespace {
 constexpr int kMaxVertices = 24;
 constexpr int kMaxFaces = 48;
 constexpr int kSymmetries[8] = {1, 2, 3, 4, 6, 8, 64, 0};
-constexpr double kScales[8] = {1.0, 1.0, 1e-3, 1e3, 1e-58, 1e58, 1e-62, 1e62};
+// Around the supported extent [1e-12, 1e12] (mesh.cpp): grid values span 1/8 .. 28, so 1e-11 and 1e11 land
+// on both sides of the limits, 1e-13 and 1e13 mostly outside.
+constexpr double kScales[8] = {1.0, 1.0, 1e-3, 1e3, 1e-11, 1e11, 1e-13, 1e13};
 constexpr double kInf = std::numeric_limits<double>::infinity();
 const double kSpecials[16] = {std::numeric_limits<double>::quiet_NaN(),
                               kInf,

@@ -356,16 +356,12 @@ ComplexVector ExactSolver::solve() {
     }
   }
   if (any_empty) {
-    // Scale the fill like the rest of the solution so magnitudes stay comparable: its RMS magnitude,
-    // summed relative to the largest one because |w|^2 overflows where the raw solution exceeds 1e154
-    // (it grows like length^(2 order): order 4 on a mesh of extent 1e20 already gets there).
-    double largest = 0, rest = 0;
+    // Scale the fill like the rest of the solution so magnitudes stay comparable.
+    double rest = 0;
     int count = 0;
     for (int u = 0; u < N; ++u)
-      if (!empty[mesh.face_component()[face_of_unknown_[u]]]) largest = std::max(largest, std::abs(w[u])), ++count;
-    for (int u = 0; u < N && largest > 0; ++u)
-      if (!empty[mesh.face_component()[face_of_unknown_[u]]]) rest += std::norm(w[u] / largest);
-    const double scale = count && largest > 0 ? largest * std::sqrt(rest / count) : 1.0;
+      if (!empty[mesh.face_component()[face_of_unknown_[u]]]) rest += std::norm(w[u]), ++count;
+    const double scale = count && rest > 0 ? std::sqrt(rest / count) : 1.0;
     w += scale * restrict_to(smoothest_, empty);
   }
   return to_faces(w);

@@ -146,6 +146,13 @@ def ingestion_seeds() -> None:
     raw += bytes([0, 1, 2])
     write("mesh_ingestion", "tiny_raw_doubles", bytes(raw))
     write("mesh_ingestion", "out_of_range_index", ingestion_seed(0, 0, TETRA_V, [(0, 1, 240), (0, 248, 2)]))
+    # Three separate faces and a duplicate at the upper end of the supported extent (scale 1e11): the spline
+    # fills the unconstrained components. The first fuzzer finding (NaN fill at extent 1e59) came from here.
+    parts_v = [(1, -14, -12.25), (-14, -14, -14), (0, -1, -14), (-13.75, -13.5, -13.75), (-13.875, -13.5, -13.875),
+               (-13.75, -7.375, -13.625)]
+    parts_f = [(0, 3, 4), (0, 5, 1), (2, 5, 3), (1, 5, 0)]
+    write("mesh_ingestion", "components_fill_large", ingestion_seed(0xB8, 3 | 8 | 0x30, parts_v, parts_f))
+    write("mesh_ingestion", "components_fill_small", ingestion_seed(0x98, 3 | 4, parts_v, parts_f))
 
 
 if __name__ == "__main__":
