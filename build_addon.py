@@ -606,15 +606,18 @@ def run_fuzz_target(name: str, seconds: int, build_dir: Path) -> tuple[bool, str
 
 
 def cmd_fuzz(args) -> int:
+    """Builds the fuzzers and runs the chosen targets one after the other; fails if any found something."""
     import time
 
-    start = time.monotonic()
-    build_dir = build_fuzzers()
-    built = time.monotonic()
     names = args.targets or list(FUZZ_TARGETS)
     unknown = [n for n in names if n not in FUZZ_TARGETS]
     if unknown:
         raise Failure(f"unknown fuzz target(s) {', '.join(unknown)}; targets: {', '.join(FUZZ_TARGETS)}")
+    if args.seconds < 1:
+        raise Failure("--seconds must be at least 1")
+    start = time.monotonic()
+    build_dir = build_fuzzers()
+    built = time.monotonic()
     results = [run_fuzz_target(name, args.seconds, build_dir) for name in names]
     say(f"fuzz job: build {built - start:.0f} s, fuzzing {time.monotonic() - built:.0f} s")
     for ok, line in results:
