@@ -30,10 +30,12 @@ constexpr double kDegenerateArea = 1e-14;
 constexpr double kNeedleHeight = 1e-7;
 /// Sliver faces (kept, listed) have their smallest angle below one degree: tan(1 degree).
 constexpr double kTanSliverAngle = 0.017455064928217585;
-/// Supported extent of the used vertices: areas (extent^2) and the fourth powers that operators such as
-/// S M^-1 S produce stay far inside the double range.
-constexpr double kMinExtent = 1e-60;
-constexpr double kMaxExtent = 1e60;
+/// Supported extent of the used vertices. Downstream quantities are powers of it: areas L^2, energies of
+/// order m up to L^(2-2m), spline solutions L^(2m) (order 4: L^8) and their squares in norms, L^16. At
+/// 1e+-20 order-4 splines overflow (NaN fields, fuzz_mesh_ingestion found one) or underflow (lambda = 0);
+/// 1e+-12 keeps all of them inside the double range with a margin of about 1e50.
+constexpr double kMinExtent = 1e-12;
+constexpr double kMaxExtent = 1e12;
 /// At most this many indices are printed per summary line.
 constexpr std::size_t kSummaryMaxIndices = 10;
 
