@@ -51,6 +51,7 @@ PIP_REQUIREMENTS = [
     "pybind11>=2.11",
     "pytest>=7",
     "hypothesis",
+    "matplotlib<3.10",  # bench/ writes the Fig. 8 plot
 ]
 VENV_PYTHON_VERSION = (3, 11)
 
@@ -349,6 +350,8 @@ def addon_env() -> dict:
 
 
 def cmd_test(pytest_args: list[str]) -> int:
+    if pytest_args[:1] == ["--"]:  # `build_addon.py test -- -k foo`: the separator is not for pytest
+        pytest_args = pytest_args[1:]
     cmd_setup()
     build_dir = build().parent
     if not pytest_args and (build_dir / "CTestTestfile.cmake").exists():
