@@ -418,9 +418,9 @@ def cmd_bench(bench_args: list[str]) -> int:
 # ---------------------------------------------------------------------------------------- sanitizers
 
 # The pytest files that exercise the native module without Blender (bpy), run by `sanitize` against the
-# ASan/UBSan build. Left out: test_shading (pure NumPy), the Blender/rendering tests (bpy would load
-# uninstrumented into the same process and they take minutes), test_core_api's and test_cli's fast
-# parts are cheap enough to keep: they reach the module through the package API and the CLI.
+# ASan/UBSan build; test_core_api and test_cli reach it through the package API and the CLI subprocesses.
+# Left out: test_shading (pure NumPy) and the Blender/rendering tests (they need bpy or a Blender process
+# and take minutes).
 SANITIZER_TESTS = [
     "test_mesh_ingestion.py", "test_operators.py", "test_spectrum.py", "test_singularities.py",
     "test_splines.py", "test_curvature.py", "test_streamlines.py", "test_session.py", "test_core_api.py",
