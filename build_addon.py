@@ -424,7 +424,8 @@ def cmd_bench(bench_args: list[str]) -> int:
 SANITIZER_TESTS = [
     "test_mesh_ingestion.py", "test_operators.py", "test_spectrum.py", "test_singularities.py",
     "test_splines.py", "test_curvature.py", "test_streamlines.py", "test_session.py", "test_core_api.py",
-    "test_cli.py", "test_fuzz_regressions.py",
+    "test_cli.py", "test_fuzz_regressions.py", "test_spectral.py", "test_memory_guard.py",
+    "test_bad_input_matrix.py", "test_solver_properties.py",
 ]
 # Deselected under the sanitizers (pytest -k): the same code paths as the rest of the suite, on the 20k-70k
 # face meshes, where ASan/UBSan make them about 6x slower (together a quarter of the run). The ingestion of
@@ -435,6 +436,10 @@ SANITIZER_DESELECT = [
     "test_incremental_equals_from_scratch and rocker",
     "bunny and (strokes or segments)",
     "test_solve_rocker_examples",
+    # ASan reserves terabytes of virtual memory (RLIMIT_AS cannot be lowered under it) and its allocator
+    # changes the peak RSS these two measure; the code paths themselves run in the other tests.
+    "test_out_of_memory_is_memory_error_and_cli_exit_2",
+    "test_basis_estimate_matches_measured_peak",
 ]
 # Helpers the selected tests import, and the plugin that checks the sanitized module is the one loaded.
 SANITIZER_TEST_SUPPORT = ["conftest.py", "meshgen.py", "sanitized_module_check.py"]

@@ -27,14 +27,13 @@ from __future__ import annotations
 import functools
 import sys
 import threading
-import time
 
 import numpy as np
 import pytest
 
 import meshgen as mg
 from conftest import DATA_DIR as DATA
-from conftest import core_mesh
+from conftest import core_mesh, run_beside_main_loop
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
@@ -733,25 +732,8 @@ def test_factorization_releases_the_gil():
     s._alignment_field(s._operators())  # operators and alignment outside the timed part
     fractions = []
     s.progress = lambda f: fractions.append((f, threading.current_thread().name))
-    box = {}
-
-    def run():
-        t0 = time.perf_counter()
-        try:
-            box["result"] = s.solve(details=False)
-        except BaseException as exc:  # reported by the main thread
-            box["error"] = exc
-        box["seconds"] = time.perf_counter() - t0
-
-    worker = threading.Thread(target=run, name="solver")
-    count, gap = 0, 0.0
-    last = time.perf_counter()
-    worker.start()
-    while worker.is_alive():
-        time.sleep(0.001)
-        now = time.perf_counter()
-        count, gap, last = count + 1, max(gap, now - last), now
-    worker.join()
+    box = run_beside_main_loop(lambda: s.solve(details=False))
+    count, gap = box["count"], box["gap"]
     assert "error" not in box, box.get("error")
     print(f"solve {box['seconds']:.3f} s, main loop {count} iterations, longest gap {gap * 1e3:.1f} ms")
     assert [f for f, _ in fractions] == [0.0, 1.0] and {t for _, t in fractions} == {"solver"}

@@ -21,8 +21,6 @@ from __future__ import annotations
 
 import functools
 import os
-import threading
-import time
 import warnings
 
 import numpy as np
@@ -30,7 +28,7 @@ import pytest
 
 import meshgen as mg
 from conftest import DATA_DIR as DATA
-from conftest import core_mesh
+from conftest import core_mesh, run_beside_main_loop
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
@@ -352,21 +350,10 @@ def test_cancel_keeps_session_and_gil_is_released(fandisk_ops, tmp_path):
 
     # the computation runs without the GIL: a sleeping main loop keeps ticking
     s.configure(k=90)
-    box = {}
-
-    def run():
-        t0 = time.perf_counter()
-        box["info"] = s.precompute()
-        box["seconds"] = time.perf_counter() - t0
-
-    worker = threading.Thread(target=run)
-    count, gap, last = 0, 0.0, time.perf_counter()
-    worker.start()
-    while worker.is_alive():
-        time.sleep(0.001)
-        now = time.perf_counter()
-        count, gap, last = count + 1, max(gap, now - last), now
-    worker.join()
+    box = run_beside_main_loop(s.precompute)
+    assert "error" not in box, box.get("error")
+    count, gap = box["count"], box["gap"]
+    box["info"] = box["result"]
     print(f"basis k=90: {box['seconds']:.2f} s, main loop {count} iterations, longest gap {gap * 1e3:.1f} ms")
     assert box["info"].source == "computed"
     assert gap < 0.25 * box["seconds"] and count >= 50
