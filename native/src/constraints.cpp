@@ -72,4 +72,12 @@ std::vector<ConstraintRow> ConstraintSet::rows(const std::vector<int>& pinned, d
   return out;
 }
 
+void require_constrainable_face(const TriangleMesh& mesh, int face) {
+  if (face < 0 || face >= mesh.num_faces())
+    throw ConstraintError("face " + std::to_string(face) + " is out of range (mesh has " +
+                          std::to_string(mesh.num_faces()) + " faces)");
+  if (!mesh.face_active(face))
+    throw ConstraintError("face " + std::to_string(face) + " is degenerate and excluded from the field");
+}
+
 }  // namespace nfield

@@ -65,14 +65,7 @@ void ReducedSolver::set_alignment(const ComplexVector& alignment) {
   projected_ = has_alignment_ ? basis_->project(alignment_) : ComplexVector::Zero(basis_->size());
 }
 
-void ReducedSolver::check_face(int face) const {
-  const TriangleMesh& mesh = ops_->mesh();
-  if (face < 0 || face >= mesh.num_faces())
-    throw ConstraintError("face " + std::to_string(face) + " is out of range (mesh has " +
-                          std::to_string(mesh.num_faces()) + " faces)");
-  if (!mesh.face_active(face) || ops_->unknown_of_face(face) < 0)
-    throw ConstraintError("face " + std::to_string(face) + " is degenerate and excluded from the field");
-}
+void ReducedSolver::check_face(int face) const { require_constrainable_face(ops_->mesh(), face); }
 
 void ReducedSolver::set_direction_constraint(int face, Complex d) {
   check_face(face);

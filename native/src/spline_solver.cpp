@@ -139,12 +139,7 @@ ComplexVector ExactSolver::apply_inverse(const ComplexVector& b) const {
 }
 
 void ExactSolver::check_face(int face) const {
-  const TriangleMesh& mesh = ops_->mesh();
-  if (face < 0 || face >= mesh.num_faces())
-    throw ConstraintError("face " + std::to_string(face) + " is out of range (mesh has " +
-                          std::to_string(mesh.num_faces()) + " faces)");
-  if (!mesh.face_active(face))
-    throw ConstraintError("face " + std::to_string(face) + " is degenerate and excluded from the field");
+  require_constrainable_face(ops_->mesh(), face);
   if (!unknown_of_face_.empty() && frozen_index_.count(face))
     throw ConstraintError("face " + std::to_string(face) + " is frozen (outside the region being edited)");
 }

@@ -110,4 +110,8 @@ struct OrientationPins {
   [[noreturn]] static void throw_unorientable();
 };
 
+/// ConstraintError unless `face` is a face of `mesh` that carries a field value (in range, not degenerate):
+/// the check every solver makes before it accepts a face constraint.
+void require_constrainable_face(const TriangleMesh& mesh, int face);
+
 }  // namespace nfield
