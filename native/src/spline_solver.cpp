@@ -27,7 +27,7 @@ double strength_to_lambda(const FieldOperators& ops, int order, double strength)
 ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength,
                          const ComplexVector& alignment, SplineKind kind, double lambda_override,
                          const ProgressCallback& progress, const std::vector<std::pair<int, Complex>>& frozen)
-    : ops_(std::move(ops)), frozen_(frozen), order_(order), kind_(kind) {
+    : ConstraintEditor(std::move(ops)), frozen_(frozen), order_(order), kind_(kind) {
   const FieldOperators& o = *ops_;
   const TriangleMesh& mesh = o.mesh();
   if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
@@ -66,12 +66,7 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
   } else {
     lambda_ = strength_to_lambda(o, order, strength);
   }
-  // s of the +d safeguard (see header): 100 x the RMS alignment magnitude, per average face area.
-  double sum = 0;
-  int count = 0;
-  for (int u = 0; u < N; ++u)
-    if (std::abs(alignment_[u]) > 0) sum += std::norm(alignment_[u]), ++count;
-  spike_ = 100.0 * (count ? std::sqrt(sum / count) : 1.0);
+  spike_ = safeguard_spike(alignment_);  // s of the +d safeguard (constraint_system.hpp)
 
   component_has_alignment_.assign(std::max(1, mesh.report().num_components), false);
   for (int u = 0; u < N; ++u)
@@ -138,38 +133,6 @@ ComplexVector ExactSolver::apply_inverse(const ComplexVector& b) const {
   return x;
 }
 
-void ExactSolver::check_face(int face) const {
-  require_constrainable_face(ops_->mesh(), face);
-  if (!unknown_of_face_.empty() && frozen_index_.count(face))
-    throw ConstraintError("face " + std::to_string(face) + " is frozen (outside the region being edited)");
-}
-
-void ExactSolver::set_direction_constraint(int face, Complex d) {
-  check_face(face);
-  constraints_.set_direction(face, d);
-}
-
-void ExactSolver::set_vector_constraint(int face, Complex value) {
-  check_face(face);
-  constraints_.set_vector(face, value);
-}
-
-void ExactSolver::remove_constraint(int face) { constraints_.remove_face(face); }
-
-void ExactSolver::set_singularity(int vertex, int numerator) {
-  auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
-  for (const auto& row : rows)
-    for (const auto& t : row.terms)
-      if (frozen_index_.count(t.first))
-        throw ConstraintError("singularity at vertex " + std::to_string(vertex) +
-                              " touches a frozen face (outside the region being edited)");
-  constraints_.set_singularity(vertex, numerator, std::move(rows));
-}
-
-void ExactSolver::remove_singularity(int vertex) { constraints_.remove_singularity(vertex); }
-
-void ExactSolver::clear_constraints() { constraints_ = ConstraintSet{}; }
-
 void ExactSolver::ensure_columns(const std::vector<int>& faces) {
   std::vector<int> missing;
   for (int f : faces)
@@ -222,39 +185,21 @@ ExactSolver::Response ExactSolver::schur_solve(const std::vector<ConstraintRow>&
     }
   }
   // K = D V^-1 D^T is positive semi-definite; it is singular exactly when rows are linearly dependent.
-  Eigen::VectorXd gamma;
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(K);
-  const Eigen::VectorXd diag = ldlt.vectorD().cwiseAbs();
-  const double kmax = std::max(diag.maxCoeff(), 1e-300);
-  if (ldlt.info() == Eigen::Success && diag.minCoeff() > 1e-11 * kmax) {
-    gamma = ldlt.solve(rhs);
-  } else {
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(K);
-    const Eigen::VectorXd ev = es.eigenvalues();
-    const Eigen::MatrixXd Q = es.eigenvectors();
-    const double emax = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
-    const Eigen::VectorXd q = Q.transpose() * rhs;
-    gamma = Eigen::VectorXd::Zero(R);
-    const double rhs_norm = std::max(rhs.norm(), 1e-300);
-    for (int i = 0; i < R; ++i) {
-      if (ev[i] > 1e-10 * emax) {
-        gamma += Q.col(i) * (q[i] / ev[i]);
-      } else if (std::abs(q[i]) > 1e-7 * rhs_norm) {
-        // Name the constraints that carry this inconsistent combination.
-        std::set<std::string> names;
-        for (int r = 0; r < R; ++r)
-          if (std::abs(Q(r, i)) > 0.1) {
-            const int f = rows[r].terms.front().first;
-            std::string name = "face " + std::to_string(f);
-            for (const auto& [vertex, rs] : constraints_.singularity_rows)
-              for (const auto& row : rs)
-                if (row.terms.front().first == f) name = "singularity at vertex " + std::to_string(vertex);
-            names.insert(name);
-          }
-        throw_contradictory(names, "");
-      }
+  const ConstraintSystemSolution sol = solve_constraint_system(K, rhs);
+  if (!sol.conflicting_rows.empty()) {
+    // Name the constraints that carry the inconsistent combination.
+    std::set<std::string> names;
+    for (int r : sol.conflicting_rows) {
+      const int f = rows[r].terms.front().first;
+      std::string name = "face " + std::to_string(f);
+      for (const auto& [vertex, rs] : constraints_.singularity_rows)
+        for (const auto& row : rs)
+          if (row.terms.front().first == f) name = "singularity at vertex " + std::to_string(vertex);
+      names.insert(name);
     }
+    throw_contradictory(names, "");
   }
+  const Eigen::VectorXd& gamma = sol.gamma;
   // w = y - sum_r gamma_r V^-1 D_r^T, kept as coefficients of the cached columns.
   Response w = y;
   for (int r = 0; r < R; ++r)
@@ -341,7 +286,7 @@ ComplexVector ExactSolver::solve() {
       const int u = unknown_of_face_.at(f);
       // s_f = spike * mean_area / A_f: every constrained face adds the same weight s * mean_area * d to b.
       const double mean_area = mesh.total_area() / o.num_unknowns();
-      const Complex delta = spike_ * (mean_area / mass_[u]) * c.value - alignment_[u];
+      const Complex delta = safeguard_delta(spike_, mean_area, mass_[u], c.value, alignment_[u]);
       y.coefficient[f] += (rhs_scale * mass_[u]) * delta;
       has_data[comp] = true;
     } else if (std::abs(c.value) > 0) {

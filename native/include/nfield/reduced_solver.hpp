@@ -47,13 +47,14 @@
 #include <unordered_map>
 #include <vector>
 
+#include "nfield/constraint_system.hpp"
 #include "nfield/constraints.hpp"
 #include "nfield/spectral_basis.hpp"
 #include "nfield/spline_solver.hpp"
 
 namespace nfield {
 
-class ReducedSolver {
+class ReducedSolver : public ConstraintEditor {
  public:
   ReducedSolver(std::shared_ptr<const FieldOperators> ops, std::shared_ptr<const SpectralBasis> basis, int order,
                 double strength, const ComplexVector& alignment, SplineKind kind,
@@ -73,13 +74,7 @@ class ReducedSolver {
   /// New alignment field per face (size num_faces) or empty: one projection onto the basis.
   void set_alignment(const ComplexVector& alignment);
 
-  void set_direction_constraint(int face, Complex d);
-  void set_vector_constraint(int face, Complex value);
-  void remove_constraint(int face);
-  void set_singularity(int vertex, int numerator);
-  void remove_singularity(int vertex);
-  void clear_constraints();
-  const ConstraintSet& constraints() const { return constraints_; }
+  // Constraint editing: ConstraintEditor (constraint_system.hpp), as for ExactSolver.
 
   /// The reduced solution x (size k): the field is U x.
   ComplexVector solve_coefficients();
@@ -94,7 +89,6 @@ class ReducedSolver {
   int uncovered_components() const { return uncovered_components_; }
 
  private:
-  void check_face(int face) const;
   void fill_empty_components(ComplexVector& field);
   /// Per component: does some basis vector have weight on it (computed once).
   const std::vector<bool>& covered_components();
@@ -104,7 +98,6 @@ class ReducedSolver {
   Complex value_at(const ComplexVector& x, int face);  ///< (U x)_f
   ComplexVector schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y);
 
-  std::shared_ptr<const FieldOperators> ops_;
   std::shared_ptr<const SpectralBasis> basis_;
   int order_;
   SplineKind kind_;
@@ -114,8 +107,7 @@ class ReducedSolver {
   bool has_alignment_ = false;
   ComplexVector alignment_;      ///< per unknown
   ComplexVector projected_;      ///< U^H M u' (without the rhs scale)
-  double spike_ = 100.0;
-  ConstraintSet constraints_;
+  double spike_ = kSafeguardWeight;
   std::unordered_map<int, ComplexVector> rows_;  ///< face -> conj(U[f, :])^T
   std::vector<int> sign_fixed_;
   double constraint_residual_ = 0;

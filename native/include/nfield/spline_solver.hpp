@@ -53,6 +53,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "nfield/constraint_system.hpp"
 #include "nfield/constraints.hpp"
 #include "nfield/operators.hpp"
 #include "nfield/spectrum.hpp"
@@ -67,7 +68,7 @@ constexpr double kVectorRegularisation = 1e-2;  ///< mu / (4 pi/A)^m of n-vector
 /// lambda = -strength * (4 pi / area)^order; ParameterError unless strength is finite and > 0.
 double strength_to_lambda(const FieldOperators& ops, int order, double strength);
 
-class ExactSolver {
+class ExactSolver : public ConstraintEditor {
  public:
   /// `alignment` per face (size num_faces) or empty for none. Factors V (the expensive step).
   /// `lambda_override` (if finite) replaces the strength mapping (expert use, tests); it must keep V
@@ -82,15 +83,9 @@ class ExactSolver {
   SplineKind kind() const { return kind_; }
   double lambda() const { return lambda_; }
 
-  /// Direction constraint: d is the representation vector (normalized here). ConstraintError for a face
-  /// out of range, an inactive face, or a zero/non-finite d.
-  void set_direction_constraint(int face, Complex d);
-  void set_vector_constraint(int face, Complex value);
-  void remove_constraint(int face);  ///< ConstraintError if the face has none
-  void set_singularity(int vertex, int numerator);  ///< validated immediately (ConstraintError)
-  void remove_singularity(int vertex);
-  void clear_constraints();
-  const ConstraintSet& constraints() const { return constraints_; }
+  // Constraint editing (set_direction_constraint, set_vector_constraint, remove_constraint, set_singularity,
+  // remove_singularity, clear_constraints, constraints): ConstraintEditor (constraint_system.hpp); faces
+  // frozen here are refused.
 
   /// The raw solution w per face (not normalized; zero on inactive faces).
   ComplexVector solve();
@@ -103,7 +98,7 @@ class ExactSolver {
   bool face_frozen(int face) const { return frozen_index_.count(face) > 0; }
 
  private:
-  void check_face(int face) const;
+  bool face_fixed(int face) const override { return !unknown_of_face_.empty() && frozen_index_.count(face) > 0; }
   void ensure_columns(const std::vector<int>& faces);
   /// A field kept as base + sum_f coefficient_f G_f, so that constraint updates touch only a few
   /// values and the full vector is assembled once, in a single pass over the cached columns.
@@ -124,7 +119,6 @@ class ExactSolver {
 
   ComplexVector to_faces(const ComplexVector& per_unknown) const;
 
-  std::shared_ptr<const FieldOperators> ops_;
   std::vector<int> unknown_of_face_, face_of_unknown_;  ///< this system's unknowns (active, not frozen)
   Eigen::VectorXd mass_;                                ///< face areas per unknown
   std::vector<std::pair<int, Complex>> frozen_;
@@ -138,7 +132,6 @@ class ExactSolver {
   Eigen::CholmodSupernodalLLT<ComplexSparse, Eigen::Lower> factor_;
   ComplexVector base_response_;  ///< V^-1 b for the unmodified alignment (per unknown)
   std::unordered_map<int, ComplexVector> columns_;  ///< face -> G_f = V^-1 e_f (per unknown)
-  ConstraintSet constraints_;
   std::vector<int> sign_fixed_;
   std::vector<bool> component_has_alignment_;
   ComplexVector smoothest_;  ///< lazily computed per-face smoothest field (component fill)
