@@ -32,6 +32,8 @@ FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, 
   const auto& P = m.positions();
   const auto& edges = m.dual_edges();
   edge_weight_.resize(edges.size());
+  transport_.resize(edges.size());
+  for (size_t e = 0; e < edges.size(); ++e) transport_[e] = connection_.transport(static_cast<int>(e), n_);
   std::vector<Eigen::Triplet<Complex>> triplets;
   triplets.reserve(4 * edges.size());
   for (size_t e = 0; e < edges.size(); ++e) {

@@ -24,7 +24,9 @@ ReducedSolver::ReducedSolver(std::shared_ptr<const FieldOperators> ops, std::sha
   if (std::isfinite(lambda_override))
     set_lambda(lambda_override);
   else if (kind == SplineKind::Vector && !has_alignment_)
-    update_lambda(-kVectorRegularisation * o.eigenvalue_unit(order));
+    update_lambda(nu_m_.minCoeff() > kReducedFlatTolerance * o.eigenvalue_unit(order)
+                      ? 0.0
+                      : -kReducedVectorRegularisation * o.eigenvalue_unit(order));
   else
     update_lambda(strength_to_lambda(o, order, strength));
 }

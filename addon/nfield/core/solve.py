@@ -358,7 +358,11 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
         alignment[idx] = np.asarray(ops.tangent_to_representation(idx, np.ascontiguousarray(per_tri[idx])))
 
     kind = "vector" if vecs and not dirs else "direction"
-    solver = nat.ExactSolver(ops, order, strength, alignment, kind)
+    # One-shot solver: vector constraints are substituted (anchors), direction constraints and singularities go
+    # through the Schur system without cached columns: one factorization and one or two solves.
+    solver = nat.ExactSolver(ops, order, strength, alignment, kind,
+                             anchor_faces=np.asarray(v_tris, dtype=np.int64) if len(vecs) else None,
+                             cache_columns=False)
 
     if len(dirs):
         zd = np.asarray(ops.tangent_to_representation(d_tris, d_vecs), dtype=np.complex128)
