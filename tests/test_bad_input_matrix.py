@@ -593,7 +593,7 @@ core.native()
 path = sys.argv[2]
 with open(path, "w") as fh:
     fh.write("OFF\n%d %d 0\n" % (len(V), len(F)))
-    fh.writelines("%r %r %r\n" % tuple(v) for v in V)
+    fh.writelines("%r %r %r\n" % tuple(map(float, v)) for v in V)  # float: numpy 2's repr is np.float64(...)
     fh.writelines("3 %d %d %d\n" % tuple(f) for f in F)
 used = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
 resource.setrlimit(resource.RLIMIT_AS, (used + 64 * 2**20, resource.getrlimit(resource.RLIMIT_AS)[1]))
