@@ -3,14 +3,17 @@
 
 Standard library only; run it with the system python3 from the repository root:
 
-    python3 build_addon.py setup                  # Debian packages + .venv (idempotent)
+    python3 build_addon.py setup                  # Debian packages + the virtual environments (idempotent)
     python3 build_addon.py build [--python PATH] [--debug] [--sanitize]
-    python3 build_addon.py test [pytest args...]  # setup + build + pytest + sanitize + short fuzz run
-    python3 build_addon.py sanitize [pytest args...]  # ASan/UBSan build + native tests under it
+    python3 build_addon.py package                # dist/nfield-<version>-linux-x64.zip (every Blender)
+    python3 build_addon.py test                   # every leg: core suite per Python, Blender suite per bpy
+                                                  # release, Blender 3.4 window, sanitizers, short fuzz run
+    python3 build_addon.py test --quick           # the inner loop: native and core tests, about a minute
+    python3 build_addon.py test [pytest args...]  # pytest tests <args> in .venv (+ hardening jobs)
+    python3 build_addon.py sanitize [pytest args...]  # ASan/UBSan build + the core suite under it
     python3 build_addon.py fuzz [--seconds N] [TARGET...]  # libFuzzer targets (docs/hardening.md)
-    python3 build_addon.py demo                   # setup + build + the main CLI job
+    python3 build_addon.py demo                   # setup + build + the main job
     python3 build_addon.py bench [args...]        # setup + build + bench/run.py
-    python3 build_addon.py package                # (not implemented yet)
 """
 from __future__ import annotations
 
@@ -473,7 +476,7 @@ def run_pytest(python: Path, args: list[str], env: dict | None = None) -> tuple[
     """pytest in a fresh process of `python`; (passed, pytest's closing line such as '40 passed in 61s')."""
     import re
 
-    closing_line = re.compile(r"^=+ (.* in [0-9.]+s.*?) =+$")
+    closing_line = re.compile(r"^(?:=+ )?(\d+ (?:passed|failed|skipped|deselected|error).* in [0-9.]+s.*?)(?: =+)?$")
     code, lines = run_teed([python, "-m", "pytest", *args], env=env or addon_env(), cwd=ROOT,
                            keep=lambda line: bool(closing_line.match(line.strip())))
     closing = closing_line.match(lines[-1]).group(1) if lines else f"exit {code}"
@@ -496,6 +499,8 @@ def cmd_test(pytest_args: list[str]) -> int:
     hardening jobs unless NFIELD_SKIP_HARDENING=1)."""
     if pytest_args[:1] == ["--"]:  # `build_addon.py test -- -k foo`: the separator is not for pytest
         pytest_args = pytest_args[1:]
+    if pytest_args[:1] == ["--quick"]:
+        return cmd_quick_test(pytest_args[1:])
     legs = Legs()
     legs.run("setup", lambda: (cmd_setup() == 0, "done"))
     envs = ready_envs()
@@ -525,6 +530,20 @@ def cmd_test(pytest_args: list[str]) -> int:
     legs.run("Debian Blender 3.4 (real window, legacy install)",
              lambda: run_pytest(VENV_PY, ["tests", *GUI_SELECTION]))
     return run_hardening_jobs(legs)
+
+
+def cmd_quick_test(pytest_args: list[str]) -> int:
+    """The inner loop (about a minute): build for .venv's Python only, the C++ tests, and the core suite
+    without the `slow` tests; no zip, no Blender, no hardening jobs."""
+    legs = Legs()
+    legs.run("setup", lambda: (cmd_setup() == 0, "done"))
+    module = build()
+    if (module.parent / "CTestTestfile.cmake").exists():
+        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", module.parent, "--output-on-failure"],
+                                                   check=False).returncode == 0, "ctest"))
+    legs.run("core suite without slow tests, Python %s" % MAIN_ENV.version,
+             lambda: run_pytest(VENV_PY, ["tests", "-q", "-m", "not blender and not gui and not slow", *pytest_args]))
+    return 0 if legs.summary() else 1
 
 
 def run_hardening_jobs(legs: Legs) -> int:
@@ -561,34 +580,10 @@ def cmd_bench(bench_args: list[str]) -> int:
 
 # ---------------------------------------------------------------------------------------- sanitizers
 
-# The pytest files that exercise the native module without Blender (bpy), run by `sanitize` against the
-# ASan/UBSan build; test_core_api and test_cli reach it through the package API and the CLI subprocesses.
-# Left out: test_shading (pure NumPy) and the Blender/rendering tests (they need bpy or a Blender process
-# and take minutes).
-SANITIZER_TESTS = [
-    "test_mesh_ingestion.py", "test_operators.py", "test_spectrum.py", "test_singularities.py",
-    "test_splines.py", "test_curvature.py", "test_streamlines.py", "test_session.py", "test_core_api.py",
-    "test_cli.py", "test_fuzz_regressions.py", "test_spectral.py", "test_memory_guard.py",
-    "test_bad_input_matrix.py", "test_solver_properties.py",
-]
-# Deselected under the sanitizers (pytest -k): the same code paths as the rest of the suite, on the 20k-70k
-# face meshes, where ASan/UBSan make them about 6x slower (together a quarter of the run). The ingestion of
-# those meshes (test_data_mesh_reports) still runs.
-SANITIZER_DESELECT = [
-    "test_fig10_biharmonic_continues_rate_of_change",
-    "test_direction_constraints_exact_and_positive and (rocker or camelhead)",
-    "test_incremental_equals_from_scratch and rocker",
-    "bunny and (strokes or segments)",
-    "test_solve_rocker_examples",
-    # ASan reserves terabytes of virtual memory (RLIMIT_AS cannot be lowered under it) and its allocator
-    # changes the peak RSS these two measure; the code paths themselves run in the other tests.
-    "test_out_of_memory_is_memory_error_and_cli_exit_2",
-    "test_basis_estimate_matches_measured_peak",
-    # reads docs/, which the sanitizer tree does not mirror (no native code involved)
-    "test_docs_list_every_case",
-]
-# Helpers the selected tests import, and the plugin that checks the sanitized module is the one loaded.
-SANITIZER_TEST_SUPPORT = ["conftest.py", "meshgen.py", "sanitized_module_check.py"]
+# What the sanitizer job runs: the core suite (no bpy, no Debian Blender) without the tests marked `slow`
+# (the same code paths as the rest on 20k-70k face meshes, about 6x slower under ASan/UBSan) or
+# `no_sanitizer` (they run no native code, or measure memory and address-space limits, which ASan changes).
+SANITIZER_SELECTION = ["-m", "not blender and not gui and not slow and not no_sanitizer"]
 
 
 def gcc_runtime(name: str) -> str:
@@ -601,7 +596,7 @@ def gcc_runtime(name: str) -> str:
 
 def sanitizer_tree(module: Path) -> Path:
     """A throw-away mirror of the repository layout next to the sanitizer build: addon/nfield (package
-    sources plus the sanitized module, never the normal one) and tests/ (the selected files; data/ and
+    sources plus the sanitized module, never the normal one) and tests/ (the test files; data/ and
     examples/ linked). The tests find addon/ relative to their own file, so they and the CLI subprocesses
     they start import the sanitized package, not the working copy's."""
     tree = module.parent / "pytree"
@@ -610,8 +605,8 @@ def sanitizer_tree(module: Path) -> Path:
                     ignore=shutil.ignore_patterns("__pycache__", "_native*", "*.tmp", "libs"))
     shutil.copy2(module, tree / "addon" / "nfield" / module.name)
     (tree / "tests").mkdir()
-    for name in SANITIZER_TESTS + SANITIZER_TEST_SUPPORT:
-        shutil.copy2(ROOT / "tests" / name, tree / "tests" / name)
+    for path in (ROOT / "tests").glob("*.py"):
+        shutil.copy2(path, tree / "tests" / path.name)
     (tree / "tests" / "data").symlink_to(ROOT / "tests" / "data")
     (tree / "examples").symlink_to(ROOT / "examples")
     return tree
@@ -658,7 +653,7 @@ def is_sanitizer_report(line: str) -> bool:
 
 
 def cmd_sanitize(pytest_args: list[str]) -> int:
-    """Builds the ASan/UBSan module and runs the native pytest files against it (see SANITIZER_TESTS).
+    """Builds the ASan/UBSan module and runs the core suite against it (see SANITIZER_SELECTION).
     Fails on a pytest failure (including the abort a report causes) or a report line in the output."""
     import time
 
@@ -666,12 +661,10 @@ def cmd_sanitize(pytest_args: list[str]) -> int:
     module = build(sanitize=True)
     built = time.monotonic()
     tree = sanitizer_tree(module)
-    tests = [str(tree / "tests" / name) for name in SANITIZER_TESTS]
-    deselect = " and ".join(f"not ({expr})" for expr in SANITIZER_DESELECT)
     # --capture=sys: pytest's default fd capture would swallow a report written to fd 2 by the runtime
     # (the process aborts before the captured text is shown); sys capture leaves fd 2 alone.
     cmd = [VENV_PY, "-m", "pytest", "-p", "sanitized_module_check", "-p", "no:cacheprovider", "-q",
-           "--capture=sys", "--durations=10", "-k", deselect, *tests, *pytest_args]
+           "--capture=sys", "--durations=10", *SANITIZER_SELECTION, str(tree / "tests"), *pytest_args]
     code, reports = run_teed(cmd, env=sanitizer_env(tree, module), cwd=tree, keep=is_sanitizer_report)
     end = time.monotonic()
     say(f"sanitizer job: build {built - start:.0f} s, tests {end - built:.0f} s, pytest exit {code}, "
@@ -904,7 +897,7 @@ def make_parser() -> argparse.ArgumentParser:
     b.add_argument("--debug", action="store_true", help="Debug build")
     b.add_argument("--sanitize", action="store_true",
                    help="-fsanitize=address,undefined, separate build dir, not copied into addon/")
-    sub.add_parser("test", help="setup + build + pytest, then `sanitize` and a short `fuzz` run "
+    sub.add_parser("test", help="every test leg (--quick: native and core tests only), then `sanitize` and a short `fuzz` run "
                                 "(extra arguments go to pytest; NFIELD_SKIP_HARDENING=1 skips the latter two)")
     sub.add_parser("sanitize", help="ASan/UBSan build + the native pytest files under it (extra arguments go to pytest)")
     fz = sub.add_parser("fuzz", help="build the libFuzzer targets (clang++-14) and run each for a bounded time")

@@ -111,7 +111,9 @@ def system_blender_env() -> dict:
 MARKERS = {
     "blender": "the headless Blender suite: needs PyPI bpy (run under every bpy release of the matrix)",
     "gui": "Debian's Blender 3.4: a real window under Xvfb, or the legacy (bl_info) install",
-    "slow": "takes more than about 30 s on the 2-core test machine",
+    "slow": "a long run of code the quicker tests also cover (large meshes); left out of `test --quick` and "
+            "of the sanitizer job",
+    "no_sanitizer": "left out of the ASan/UBSan job: runs no native code, or measures memory, which ASan changes",
 }
 
 

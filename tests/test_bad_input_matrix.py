@@ -607,6 +607,7 @@ print("CLI exit", main(["solve", path, "--n", "4", "--order", "4"]))
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs RLIMIT_AS and /proc (Linux)")
+@pytest.mark.no_sanitizer  # ASan reserves terabytes of address space: RLIMIT_AS cannot be lowered under it
 def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
     """A real std::bad_alloc (address space limited to 64 MB above what the process uses, in a subprocess):
     the core raises MemoryError, the CLI exits 2 with one line (not exit 1, not a traceback)."""
@@ -621,6 +622,7 @@ def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------ docs
+@pytest.mark.no_sanitizer  # reads docs/, no native code
 def test_docs_list_every_case():
     """docs/hardening.md's "Bad input" section names every case of the table (and no unknown one)."""
     text = (ROOT / "docs" / "hardening.md").read_text()
