@@ -116,7 +116,7 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
         _xdo(env, "mousemove", "--window", win, px, py)
         time.sleep(0.5)
         _xdo(env, "mousedown", 1)
-        time.sleep(0.3)
+        _wait_file(work / "pressed.json", blender, 60)  # Blender handled the press: now drag
         steps = 12
         for i in range(1, steps + 1):
             _xdo(env, "mousemove", "--window", win, round(px + (tx - px) * i / steps),
