@@ -3,14 +3,17 @@
 
 Standard library only; run it with the system python3 from the repository root:
 
-    python3 build_addon.py setup                  # Debian packages + .venv (idempotent)
+    python3 build_addon.py setup                  # Debian packages + the virtual environments (idempotent)
     python3 build_addon.py build [--python PATH] [--debug] [--sanitize]
-    python3 build_addon.py test [pytest args...]  # setup + build + pytest + sanitize + short fuzz run
-    python3 build_addon.py sanitize [pytest args...]  # ASan/UBSan build + native tests under it
+    python3 build_addon.py package                # dist/nfield-<version>-linux-x64.zip (every Blender)
+    python3 build_addon.py test                   # every leg: core suite per Python, Blender suite per bpy
+                                                  # release, Blender 3.4 window, sanitizers, short fuzz run
+    python3 build_addon.py test --quick           # the inner loop: native and core tests, about a minute
+    python3 build_addon.py test [pytest args...]  # pytest tests <args> in .venv (+ hardening jobs)
+    python3 build_addon.py sanitize [pytest args...]  # ASan/UBSan build + the core suite under it
     python3 build_addon.py fuzz [--seconds N] [TARGET...]  # libFuzzer targets (docs/hardening.md)
-    python3 build_addon.py demo                   # setup + build + the main CLI job
+    python3 build_addon.py demo                   # setup + build + the main job
     python3 build_addon.py bench [args...]        # setup + build + bench/run.py
-    python3 build_addon.py package                # (not implemented yet)
 """
 from __future__ import annotations
 
@@ -21,6 +24,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
@@ -42,18 +46,52 @@ APT_PACKAGES = [
     "clang-14", "libclang-rt-14-dev",       # sanitizers / libFuzzer
     "xvfb", "xdotool", "blender",           # real-window Blender tests (Debian Blender 3.4, system Python)
     "python3-numpy",                        # NumPy for Debian's Python / Blender 3.4 (not pulled in by blender)
+    "ccache",                               # the per-Python builds share the library's objects
 ]
 
-# Python packages installed into .venv (bpy 5.0.1 is a CPython 3.11 wheel).
-PIP_REQUIREMENTS = [
-    "bpy==5.0.1",
-    "numpy>=1.24,<2",
-    "pybind11>=2.11",
-    "pytest>=7",
-    "hypothesis",
-    "matplotlib<3.10",  # bench/ writes the Fig. 8 plot
-]
-VENV_PYTHON_VERSION = (3, 11)
+# The Python environments (virtual environments created by `setup`). Every supported Blender release is tested
+# headless through its PyPI `bpy` wheel, which only installs into the CPython that release bundles:
+#   Blender 4.2 LTS, 4.5 LTS, 5.0: CPython 3.11, numpy 1.x;  Blender 5.1, 5.2 LTS: CPython 3.13, numpy 2.
+# A compiled module is built for each Python version that has a `builds` environment; the extension zip
+# carries all of them side by side (Python imports the one whose ABI tag matches it).
+TEST_REQUIREMENTS = ("pytest>=7", "hypothesis")
+
+
+@dataclass(frozen=True)
+class PythonEnv:
+    name: str                      # as printed in summaries
+    folder: Path
+    python: tuple[int, int]
+    requirements: tuple[str, ...]
+    bpy: str                       # the PyPI bpy release installed there (its headless Blender suite runs there)
+    builds: bool = False           # the native module is built with this interpreter
+    core_suite: bool = False       # the core suite (native math, CLI, sessions) runs there
+
+    @property
+    def python_path(self) -> Path:
+        return self.folder / "bin" / "python"
+
+    @property
+    def version(self) -> str:
+        return "%d.%d" % self.python
+
+
+MAIN_ENV = PythonEnv(
+    "main", ROOT / ".venv", (3, 11),
+    ("bpy==5.0.1", "numpy>=1.24,<2", "pybind11>=2.11", *TEST_REQUIREMENTS,
+     "matplotlib<3.10"),  # bench/ writes the Fig. 8 plot
+    bpy="5.0.1", builds=True, core_suite=True)
+PY313_ENV = PythonEnv(
+    "py313", ROOT / ".venv-313", (3, 13),
+    ("bpy==5.2.3", "numpy>=2", "pybind11>=2.11", *TEST_REQUIREMENTS),
+    bpy="5.2.3", builds=True, core_suite=True)
+BLENDER_ENVS_DIR = ROOT / ".venv-blender"
+EXTRA_BPY_ENVS = tuple(
+    PythonEnv(f"bpy-{v}", BLENDER_ENVS_DIR / v, (3, 11), (f"bpy=={v}", "numpy>=1.24,<2", *TEST_REQUIREMENTS), bpy=v)
+    for v in ("4.2.23", "4.5.15"))
+ALL_ENVS = (MAIN_ENV, PY313_ENV, *EXTRA_BPY_ENVS)
+VENV = MAIN_ENV.folder
+VENV_PY = MAIN_ENV.python_path
 
 
 class Failure(Exception):
@@ -133,15 +171,38 @@ def setup_debian() -> None:
         raise Failure("apt-get did not install: " + " ".join(still))
 
 
-def base_python_for_venv() -> str:
-    if sys.version_info[:2] == VENV_PYTHON_VERSION:
+def _runs_as(python: str, version: tuple[int, int]) -> bool:
+    """True if `python` starts and is that version (a pyenv shim for an unselected version does not start)."""
+    try:
+        proc = subprocess.run([python, "-c", "import sys; print('%d.%d' % sys.version_info[:2])"],
+                              capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return proc.returncode == 0 and proc.stdout.strip() == "%d.%d" % version
+
+
+def find_interpreter(version: tuple[int, int]) -> str | None:
+    """A CPython of `version` to create a virtual environment from: this one, pythonX.Y on PATH, a pyenv
+    installation (`pyenv prefix`), or the usual system locations. None if there is none."""
+    if sys.version_info[:2] == version:
         return sys.executable
-    name = "python%d.%d" % VENV_PYTHON_VERSION
-    found = shutil.which(name)
-    if found:
-        return found
-    raise Failure(f"need Python {name[6:]} for .venv (bpy 5.0.1 is a CPython 3.11 wheel); "
-                  f"this is {sys.version.split()[0]} and no {name} is on PATH")
+    name = "python%d.%d" % version
+    candidates = [shutil.which(name)]
+    pyenv = shutil.which("pyenv")
+    if pyenv:
+        listed = subprocess.run([pyenv, "versions", "--bare"], capture_output=True, text=True, check=False).stdout
+        releases = [v for v in listed.split() if v.startswith("%d.%d." % version) and v.replace(".", "").isdigit()]
+        for release in sorted(releases, key=lambda v: [int(x) for x in v.split(".")], reverse=True):
+            prefix = subprocess.run([pyenv, "prefix", release], capture_output=True, text=True, check=False)
+            if prefix.returncode == 0:
+                candidates.append(os.path.join(prefix.stdout.strip(), "bin", name))
+    root = os.environ.get("PYENV_ROOT", os.path.expanduser("~/.pyenv"))
+    candidates += sorted(Path(root, "versions").glob("%d.%d.*/bin/%s" % (*version, name)), reverse=True)
+    candidates += [f"/usr/bin/{name}", f"/usr/local/bin/{name}"]
+    for candidate in candidates:
+        if candidate and os.path.exists(candidate) and _runs_as(str(candidate), version):
+            return str(candidate)
+    return None
 
 
 # Runs inside .venv: exit 0 when every requirement is installed and satisfied.
@@ -167,26 +228,46 @@ sys.exit(1 if bad else 0)
 """
 
 
-def setup_venv() -> None:
-    if VENV.exists() and not VENV_PY.exists():
-        raise Failure(f"{VENV} exists but has no bin/python: remove it and run setup again")
-    if not VENV_PY.exists():
-        run([base_python_for_venv(), "-m", "venv", VENV])
-    proc = run([VENV_PY, "-c", "import sys; print('%d.%d' % sys.version_info[:2])"], capture=True, quiet=True)
-    have = proc.stdout.strip()
-    if have != "%d.%d" % VENV_PYTHON_VERSION:
-        raise Failure(f".venv uses Python {have}, but bpy 5.0.1 needs 3.11: remove .venv and run setup again")
-    check = run([VENV_PY, "-c", _CHECK_REQUIREMENTS, *PIP_REQUIREMENTS], check=False, capture=True)
+def setup_env(env: PythonEnv) -> bool:
+    """Creates `env` if needed and installs what is missing. Returns False (after one line saying so) when
+    its Python is not on this machine and it is optional; under CI=true that is an error."""
+    py = env.python_path
+    rel = env.folder.relative_to(ROOT)
+    if env.folder.exists() and not py.exists():
+        raise Failure(f"{rel} exists but has no bin/python: remove it and run setup again")
+    if not py.exists():
+        base = find_interpreter(env.python)
+        if base is None:
+            what = (f"no CPython {env.version} found (not on PATH as python{env.version}, not in pyenv): "
+                    f"{rel} is not created, so the Python {env.version} legs (module build, core suite, "
+                    f"bpy {env.bpy}) are skipped")
+            if env is MAIN_ENV or os.environ.get("CI", "").lower() == "true":
+                raise Failure(what)
+            say(what)
+            return False
+        env.folder.parent.mkdir(parents=True, exist_ok=True)
+        run([base, "-m", "venv", env.folder])
+    proc = run([py, "-c", "import sys; print('%d.%d' % sys.version_info[:2])"], capture=True, quiet=True)
+    if proc.stdout.strip() != env.version:
+        raise Failure(f"{rel} uses Python {proc.stdout.strip()}, but bpy {env.bpy} needs {env.version}: "
+                      f"remove {rel} and run setup again")
+    check = run([py, "-c", _CHECK_REQUIREMENTS, *env.requirements], check=False, capture=True, quiet=True)
     if check.returncode == 0:
-        say(f"Python packages in .venv: all {len(PIP_REQUIREMENTS)} requirements satisfied")
-        return
-    say("Python packages to install: " + (check.stdout.strip() or check.stderr.strip().splitlines()[-1]))
-    run([VENV_PY, "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
-         "--no-input", *PIP_REQUIREMENTS])
-    check = run([VENV_PY, "-c", _CHECK_REQUIREMENTS, *PIP_REQUIREMENTS], check=False, capture=True)
+        say(f"{rel} (Python {env.version}): all {len(env.requirements)} requirements satisfied")
+        return True
+    say(f"{rel}: to install: " + (check.stdout.strip() or check.stderr.strip().splitlines()[-1]))
+    run([py, "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
+         "--no-input", *env.requirements])
+    check = run([py, "-c", _CHECK_REQUIREMENTS, *env.requirements], check=False, capture=True)
     if check.returncode != 0:
-        raise Failure("pip did not satisfy: " + check.stdout.strip())
-    say(f"Python packages in .venv: installed, all {len(PIP_REQUIREMENTS)} requirements satisfied")
+        raise Failure(f"pip did not satisfy in {rel}: " + check.stdout.strip())
+    say(f"{rel} (Python {env.version}): installed, all {len(env.requirements)} requirements satisfied")
+    return True
+
+
+def ready_envs() -> list[PythonEnv]:
+    """The environments that exist and have their interpreter (after setup)."""
+    return [env for env in ALL_ENVS if env.python_path.exists()]
 
 
 def link_addon_into_venv() -> None:
@@ -201,7 +282,8 @@ def link_addon_into_venv() -> None:
 
 def cmd_setup(_args=None) -> int:
     setup_debian()
-    setup_venv()
+    for env in ALL_ENVS:
+        setup_env(env)
     link_addon_into_venv()
     return 0
 
@@ -270,6 +352,11 @@ def check_no_numpy_headers(build_dir: Path) -> None:
                 raise Failure(f"{entry.get('file')} is compiled with NumPy's headers ({token})")
 
 
+def build_tag(info: dict, variant: str) -> str:
+    """Build directory name under build/: one per interpreter and variant."""
+    return f"{info['implementation']}-{info['version']}-{variant}"
+
+
 def build(python: str | None = None, debug: bool = False, sanitize: bool = False) -> Path:
     """Configure + build; returns the path of the built module (copied into addon/nfield unless sanitize)."""
     check_sources()
@@ -281,8 +368,7 @@ def build(python: str | None = None, debug: bool = False, sanitize: bool = False
 
     build_type = "Debug" if debug else ("RelWithDebInfo" if sanitize else "Release")
     variant = ("asan-" if sanitize else "") + ("debug" if debug else "release")
-    tag = f"{info['implementation']}-{info['version']}-{variant}"
-    build_dir = BUILD_ROOT / tag
+    build_dir = BUILD_ROOT / build_tag(info, variant)
     generator = "Ninja" if shutil.which("ninja") else "Unix Makefiles"
 
     config = {
@@ -336,8 +422,16 @@ def build(python: str | None = None, debug: bool = False, sanitize: bool = False
     return module
 
 
+def build_all(debug: bool = False) -> list[Path]:
+    """Builds the module for every interpreter set up to build one (one build directory each)."""
+    return [build(str(env.python_path), debug) for env in ready_envs() if env.builds]
+
+
 def cmd_build(args) -> int:
-    build(args.python, args.debug, args.sanitize)
+    if args.python or args.sanitize:
+        build(args.python, args.debug, args.sanitize)
+    else:
+        build_all(args.debug)
     return 0
 
 
@@ -349,51 +443,120 @@ def addon_env() -> dict:
     return env
 
 
-def cmd_test(pytest_args: list[str]) -> int:
-    if pytest_args[:1] == ["--"]:  # `build_addon.py test -- -k foo`: the separator is not for pytest
-        pytest_args = pytest_args[1:]
-    cmd_setup()
-    build_dir = build().parent
-    if not pytest_args and (build_dir / "CTestTestfile.cmake").exists():
-        # C++ tests (native/tests/*.cpp) exist: run them first.
-        run(["ctest", "--test-dir", build_dir, "--output-on-failure"])
-    # Select `tests` unless the arguments already name test paths.
-    names_paths = any(not a.startswith("-") and (Path(a.split("::")[0]).exists()) for a in pytest_args)
-    cmd = [VENV_PY, "-m", "pytest"] + ([] if names_paths else ["tests"]) + pytest_args
-    proc = run(cmd, env=addon_env(), check=False)
-    if proc.returncode == 5:
-        raise Failure("pytest collected no tests (exit 5)")
-    if proc.returncode != 0:
-        say(f"pytest failed (exit {proc.returncode})")
-    return run_hardening_jobs(proc.returncode)
+class Legs:
+    """The legs of a test run, each timed; `summary()` prints one line per leg (ok/FAILED, what, time)."""
 
+    def __init__(self):
+        self.rows: list[tuple[str, bool, str]] = []
 
-def run_hardening_jobs(pytest_code: int) -> int:
-    """After the normal pytest run: the sanitizer job and a short fuzz run (docs/hardening.md), each
-    timed, then one summary. Runs even when pytest failed, so one CI run reports everything.
-    NFIELD_SKIP_HARDENING=1 skips both (fast local iteration; CI never sets it)."""
-    import time
+    def run(self, title: str, job) -> bool:
+        """Runs job() -> (ok, detail) or raises Failure; records the outcome and its wall time."""
+        import time
 
-    if os.environ.get("NFIELD_SKIP_HARDENING", "") not in ("", "0"):
-        say("NFIELD_SKIP_HARDENING is set: skipping the sanitizer job and the fuzz run")
-        return pytest_code
-    results = [("pytest", pytest_code == 0, "exit %d" % pytest_code)]
-    jobs = [("sanitizer job (ASan/UBSan pytest)", lambda: cmd_sanitize([])),
-            (f"fuzz run ({FUZZ_SECONDS_IN_TEST} s per target)",
-             lambda: cmd_fuzz(argparse.Namespace(seconds=FUZZ_SECONDS_IN_TEST, targets=[])))]
-    for title, job in jobs:
         start = time.monotonic()
         try:
-            job()
-            ok, detail = True, "passed"
+            ok, detail = job()
         except Failure as exc:
             print(f"build_addon: error: {exc}", file=sys.stderr, flush=True)
             ok, detail = False, "FAILED"
-        results.append((title, ok, f"{detail} in {time.monotonic() - start:.0f} s"))
-    say("summary:")
-    for title, ok, detail in results:
-        say(f"  {'ok    ' if ok else 'FAILED'}  {title}: {detail}")
-    return 0 if all(ok for _, ok, _ in results) else (pytest_code or 1)
+        self.rows.append((title, ok, f"{detail} in {time.monotonic() - start:.0f} s"))
+        return ok
+
+    def skip(self, title: str, reason: str) -> None:
+        self.rows.append((title, True, f"skipped: {reason}"))
+
+    def summary(self) -> bool:
+        say("summary:")
+        for title, ok, detail in self.rows:
+            say(f"  {'ok    ' if ok else 'FAILED'}  {title}: {detail}")
+        return all(ok for _, ok, _ in self.rows)
+
+
+def run_pytest(python: Path, args: list[str], env: dict | None = None) -> tuple[bool, str]:
+    """pytest in a fresh process of `python`; (passed, pytest's closing line such as '40 passed in 61s')."""
+    import re
+
+    closing_line = re.compile(r"^(?:=+ )?(\d+ (?:passed|failed|skipped|deselected|error).* in [0-9.]+s.*?)(?: =+)?$")
+    code, lines = run_teed([python, "-m", "pytest", *args], env=env or addon_env(), cwd=ROOT,
+                           keep=lambda line: bool(closing_line.match(line.strip())))
+    closing = closing_line.match(lines[-1]).group(1) if lines else f"exit {code}"
+    if code == 5:
+        return False, "no tests collected"
+    return code == 0, closing
+
+
+# pytest markers (registered in tests/conftest.py): `blender` = the headless Blender suite (PyPI bpy),
+# `gui` = Debian's Blender 3.4 (real window under Xvfb, legacy install).
+CORE_SELECTION = ["-m", "not blender and not gui"]
+BLENDER_SELECTION = ["-m", "blender"]
+GUI_SELECTION = ["-m", "gui"]
+
+
+def cmd_test(pytest_args: list[str]) -> int:
+    """The whole test suite, leg by leg (see Legs): set-up, builds and the zip, C++ tests, the core suite
+    under each Python, the headless Blender suite under each bpy release, the real-window tests, then the
+    sanitizer job and a short fuzz run. With pytest arguments: only `pytest tests <args>` in .venv (plus the
+    hardening jobs unless NFIELD_SKIP_HARDENING=1)."""
+    if pytest_args[:1] == ["--"]:  # `build_addon.py test -- -k foo`: the separator is not for pytest
+        pytest_args = pytest_args[1:]
+    if pytest_args[:1] == ["--quick"]:
+        return cmd_quick_test(pytest_args[1:])
+    legs = Legs()
+    legs.run("setup", lambda: (cmd_setup() == 0, "done"))
+    envs = ready_envs()
+    if not legs.run("build and package", lambda: (cmd_package(argparse.Namespace(python=None)) == 0,
+                                                   f"modules for Python {', '.join(e.version for e in envs if e.builds)}")):
+        legs.summary()
+        return 1
+    if pytest_args:
+        names_paths = any(not a.startswith("-") and Path(a.split("::")[0]).exists() for a in pytest_args)
+        legs.run("pytest " + " ".join(pytest_args),
+                 lambda: run_pytest(VENV_PY, ([] if names_paths else ["tests"]) + pytest_args))
+        return run_hardening_jobs(legs)
+    ctest_dir = BUILD_ROOT / build_tag(interpreter_info(str(VENV_PY)), "release")
+    if (ctest_dir / "CTestTestfile.cmake").exists():  # C++ tests (native/tests/*.cpp)
+        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", ctest_dir, "--output-on-failure"],
+                                                   check=False).returncode == 0, "ctest"))
+    for env in envs:
+        if env.core_suite:
+            legs.run(f"core suite, Python {env.version}", lambda env=env: run_pytest(env.python_path,
+                                                                                     ["tests", *CORE_SELECTION]))
+    for env in sorted(envs, key=lambda e: [int(x) for x in e.bpy.split(".")]):
+        legs.run(f"headless Blender suite, bpy {env.bpy} (Python {env.version})",
+                 lambda env=env: run_pytest(env.python_path, ["tests", *BLENDER_SELECTION]))
+    missing = [e for e in ALL_ENVS if e not in envs]
+    for env in missing:
+        legs.skip(f"Python {env.version} legs (bpy {env.bpy})", f"no CPython {env.version} on this machine")
+    legs.run("Debian Blender 3.4 (real window, legacy install)",
+             lambda: run_pytest(VENV_PY, ["tests", *GUI_SELECTION]))
+    return run_hardening_jobs(legs)
+
+
+def cmd_quick_test(pytest_args: list[str]) -> int:
+    """The inner loop (about a minute): build for .venv's Python only, the C++ tests, and the core suite
+    without the `slow` tests; no zip, no Blender, no hardening jobs."""
+    legs = Legs()
+    legs.run("setup", lambda: (cmd_setup() == 0, "done"))
+    module = build()
+    if (module.parent / "CTestTestfile.cmake").exists():
+        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", module.parent, "--output-on-failure"],
+                                                   check=False).returncode == 0, "ctest"))
+    legs.run("core suite without slow tests, Python %s" % MAIN_ENV.version,
+             lambda: run_pytest(VENV_PY, ["tests", "-q", "-m", "not blender and not gui and not slow", *pytest_args]))
+    return 0 if legs.summary() else 1
+
+
+def run_hardening_jobs(legs: Legs) -> int:
+    """After the pytest legs: the sanitizer job and a short fuzz run (docs/hardening.md), each timed, then
+    the summary of every leg. Runs even when a leg failed, so one CI run reports everything.
+    NFIELD_SKIP_HARDENING=1 skips both (fast local iteration; CI never sets it)."""
+    if os.environ.get("NFIELD_SKIP_HARDENING", "") not in ("", "0"):
+        say("NFIELD_SKIP_HARDENING is set: skipping the sanitizer job and the fuzz run")
+    else:
+        legs.run("sanitizer job (ASan/UBSan pytest)", lambda: (cmd_sanitize([]) == 0, "passed"))
+        legs.run(f"fuzz run ({FUZZ_SECONDS_IN_TEST} s per target)",
+                 lambda: (cmd_fuzz(argparse.Namespace(seconds=FUZZ_SECONDS_IN_TEST, targets=[])) == 0, "passed"))
+    return 0 if legs.summary() else 1
 
 
 def cmd_demo(_args) -> int:
@@ -417,34 +580,10 @@ def cmd_bench(bench_args: list[str]) -> int:
 
 # ---------------------------------------------------------------------------------------- sanitizers
 
-# The pytest files that exercise the native module without Blender (bpy), run by `sanitize` against the
-# ASan/UBSan build; test_core_api and test_cli reach it through the package API and the CLI subprocesses.
-# Left out: test_shading (pure NumPy) and the Blender/rendering tests (they need bpy or a Blender process
-# and take minutes).
-SANITIZER_TESTS = [
-    "test_mesh_ingestion.py", "test_operators.py", "test_spectrum.py", "test_singularities.py",
-    "test_splines.py", "test_curvature.py", "test_streamlines.py", "test_session.py", "test_core_api.py",
-    "test_cli.py", "test_fuzz_regressions.py", "test_spectral.py", "test_memory_guard.py",
-    "test_bad_input_matrix.py", "test_solver_properties.py",
-]
-# Deselected under the sanitizers (pytest -k): the same code paths as the rest of the suite, on the 20k-70k
-# face meshes, where ASan/UBSan make them about 6x slower (together a quarter of the run). The ingestion of
-# those meshes (test_data_mesh_reports) still runs.
-SANITIZER_DESELECT = [
-    "test_fig10_biharmonic_continues_rate_of_change",
-    "test_direction_constraints_exact_and_positive and (rocker or camelhead)",
-    "test_incremental_equals_from_scratch and rocker",
-    "bunny and (strokes or segments)",
-    "test_solve_rocker_examples",
-    # ASan reserves terabytes of virtual memory (RLIMIT_AS cannot be lowered under it) and its allocator
-    # changes the peak RSS these two measure; the code paths themselves run in the other tests.
-    "test_out_of_memory_is_memory_error_and_cli_exit_2",
-    "test_basis_estimate_matches_measured_peak",
-    # reads docs/, which the sanitizer tree does not mirror (no native code involved)
-    "test_docs_list_every_case",
-]
-# Helpers the selected tests import, and the plugin that checks the sanitized module is the one loaded.
-SANITIZER_TEST_SUPPORT = ["conftest.py", "meshgen.py", "sanitized_module_check.py"]
+# What the sanitizer job runs: the core suite (no bpy, no Debian Blender) without the tests marked `slow`
+# (the same code paths as the rest on 20k-70k face meshes, about 6x slower under ASan/UBSan) or
+# `no_sanitizer` (they run no native code, or measure memory and address-space limits, which ASan changes).
+SANITIZER_SELECTION = ["-m", "not blender and not gui and not slow and not no_sanitizer"]
 
 
 def gcc_runtime(name: str) -> str:
@@ -457,7 +596,7 @@ def gcc_runtime(name: str) -> str:
 
 def sanitizer_tree(module: Path) -> Path:
     """A throw-away mirror of the repository layout next to the sanitizer build: addon/nfield (package
-    sources plus the sanitized module, never the normal one) and tests/ (the selected files; data/ and
+    sources plus the sanitized module, never the normal one) and tests/ (the test files; data/ and
     examples/ linked). The tests find addon/ relative to their own file, so they and the CLI subprocesses
     they start import the sanitized package, not the working copy's."""
     tree = module.parent / "pytree"
@@ -466,8 +605,8 @@ def sanitizer_tree(module: Path) -> Path:
                     ignore=shutil.ignore_patterns("__pycache__", "_native*", "*.tmp", "libs"))
     shutil.copy2(module, tree / "addon" / "nfield" / module.name)
     (tree / "tests").mkdir()
-    for name in SANITIZER_TESTS + SANITIZER_TEST_SUPPORT:
-        shutil.copy2(ROOT / "tests" / name, tree / "tests" / name)
+    for path in (ROOT / "tests").glob("*.py"):
+        shutil.copy2(path, tree / "tests" / path.name)
     (tree / "tests" / "data").symlink_to(ROOT / "tests" / "data")
     (tree / "examples").symlink_to(ROOT / "examples")
     return tree
@@ -494,22 +633,27 @@ SANITIZER_REPORT_MARKERS = ("ERROR: AddressSanitizer", "SUMMARY: AddressSanitize
                             "SUMMARY: UndefinedBehaviorSanitizer")
 
 
-def run_teed(cmd, *, env, cwd) -> tuple[int, list[str]]:
-    """Runs cmd with its output passed through to ours line by line; returns (exit code, report lines)."""
+def run_teed(cmd, *, env, cwd, keep=lambda line: False) -> tuple[int, list[str]]:
+    """Runs cmd with its output passed through to ours line by line; returns (exit code, the lines for
+    which keep(line) is true)."""
     print("+ " + " ".join(shlex.quote(_shown(str(c))) for c in cmd), flush=True)
-    reports = []
+    kept = []
     with subprocess.Popen([str(c) for c in cmd], env=env, cwd=cwd, stdin=subprocess.DEVNULL,
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace") as proc:
         for line in proc.stdout:
             sys.stdout.write(line)
-            if any(marker in line for marker in SANITIZER_REPORT_MARKERS):
-                reports.append(line.strip())
+            if keep(line):
+                kept.append(line.strip())
         sys.stdout.flush()
-    return proc.returncode, reports
+    return proc.returncode, kept
+
+
+def is_sanitizer_report(line: str) -> bool:
+    return any(marker in line for marker in SANITIZER_REPORT_MARKERS)
 
 
 def cmd_sanitize(pytest_args: list[str]) -> int:
-    """Builds the ASan/UBSan module and runs the native pytest files against it (see SANITIZER_TESTS).
+    """Builds the ASan/UBSan module and runs the core suite against it (see SANITIZER_SELECTION).
     Fails on a pytest failure (including the abort a report causes) or a report line in the output."""
     import time
 
@@ -517,13 +661,11 @@ def cmd_sanitize(pytest_args: list[str]) -> int:
     module = build(sanitize=True)
     built = time.monotonic()
     tree = sanitizer_tree(module)
-    tests = [str(tree / "tests" / name) for name in SANITIZER_TESTS]
-    deselect = " and ".join(f"not ({expr})" for expr in SANITIZER_DESELECT)
     # --capture=sys: pytest's default fd capture would swallow a report written to fd 2 by the runtime
     # (the process aborts before the captured text is shown); sys capture leaves fd 2 alone.
     cmd = [VENV_PY, "-m", "pytest", "-p", "sanitized_module_check", "-p", "no:cacheprovider", "-q",
-           "--capture=sys", "--durations=10", "-k", deselect, *tests, *pytest_args]
-    code, reports = run_teed(cmd, env=sanitizer_env(tree, module), cwd=tree)
+           "--capture=sys", "--durations=10", *SANITIZER_SELECTION, str(tree / "tests"), *pytest_args]
+    code, reports = run_teed(cmd, env=sanitizer_env(tree, module), cwd=tree, keep=is_sanitizer_report)
     end = time.monotonic()
     say(f"sanitizer job: build {built - start:.0f} s, tests {end - built:.0f} s, pytest exit {code}, "
         f"{len(reports)} sanitizer report line(s)")
@@ -710,9 +852,16 @@ def cmd_package(args) -> int:
 def _package_locked(args, version: str, dist: Path) -> int:
     import zipfile
 
-    module = build(getattr(args, "python", None))
-    check_rpath(module)
-    libs = bundled_libraries(module)
+    python = getattr(args, "python", None)
+    modules = [build(python)] if python else build_all()
+    if not modules:
+        raise Failure("no interpreter is set up to build the module: run `python3 build_addon.py setup`")
+    libs: dict[str, Path] = {}
+    for module in modules:
+        check_rpath(module)
+        for soname, real in bundled_libraries(module):
+            if libs.setdefault(soname, real) != real:
+                raise Failure(f"{soname} resolves to {libs[soname]} and to {real} for different modules")
     target = dist / f"nfield-{version}-linux-x64.zip"
     tmp = target.with_name(target.name + ".tmp")
     count = 0
@@ -722,16 +871,17 @@ def _package_locked(args, version: str, dist: Path) -> int:
             if path.is_dir() or any(p in PACKAGE_EXCLUDE_DIRS for p in rel.parts[:-1]):
                 continue
             if path.name.endswith(PACKAGE_EXCLUDE_SUFFIXES) or path.name.startswith("_native"):
-                continue  # compiled modules: only the one just built goes in (below)
+                continue  # compiled modules: only the ones just built go in (below)
             zf.write(path, f"nfield/{rel.as_posix()}")
             count += 1
-        zf.write(module, f"nfield/{module.name}")
-        for soname, real in libs:
+        for module in modules:  # one per Python ABI, side by side
+            zf.write(module, f"nfield/{module.name}")
+        for soname, real in sorted(libs.items()):  # shared by every module: bundled once
             zf.write(real, f"nfield/libs/{soname}")
     os.replace(tmp, target)
     size = target.stat().st_size / 1e6
-    say(f"packaged {target.relative_to(ROOT)} ({size:.1f} MB): {count} files, {module.name}, "
-        f"{len(libs)} bundled libraries ({', '.join(s for s, _ in libs)})")
+    say(f"packaged {target.relative_to(ROOT)} ({size:.1f} MB): {count} files, "
+        f"{', '.join(m.name for m in modules)}, {len(libs)} bundled libraries ({', '.join(sorted(libs))})")
     return 0
 
 
@@ -743,11 +893,11 @@ def make_parser() -> argparse.ArgumentParser:
     sub.add_parser("setup", help="install Debian packages and .venv if missing (idempotent)")
     b = sub.add_parser("build", help="build the native module and copy it into addon/nfield/")
     b.add_argument("--python", metavar="PATH",
-                   help="build for this interpreter (default: .venv/bin/python)")
+                   help="build for this interpreter only (default: every interpreter set up, .venv and .venv-313)")
     b.add_argument("--debug", action="store_true", help="Debug build")
     b.add_argument("--sanitize", action="store_true",
                    help="-fsanitize=address,undefined, separate build dir, not copied into addon/")
-    sub.add_parser("test", help="setup + build + pytest, then `sanitize` and a short `fuzz` run "
+    sub.add_parser("test", help="every test leg (--quick: native and core tests only), then `sanitize` and a short `fuzz` run "
                                 "(extra arguments go to pytest; NFIELD_SKIP_HARDENING=1 skips the latter two)")
     sub.add_parser("sanitize", help="ASan/UBSan build + the native pytest files under it (extra arguments go to pytest)")
     fz = sub.add_parser("fuzz", help="build the libFuzzer targets (clang++-14) and run each for a bounded time")
@@ -757,7 +907,7 @@ def make_parser() -> argparse.ArgumentParser:
     sub.add_parser("bench", help="setup + build + bench/run.py (extra arguments go to it)")
     pk = sub.add_parser("package", help="build the module and write dist/nfield-<version>-linux-x64.zip")
     pk.add_argument("--python", metavar="PATH",
-                    help="build the module for this interpreter (default: .venv/bin/python)")
+                    help="only a module for this interpreter (default: one per interpreter set up)")
     return parser
 
 

@@ -125,3 +125,110 @@ def stationarity_residual(ops, order: int, lam: float, w, rhs, free) -> float:
     size += abs(lam) * mass * np.abs(w) + np.abs(rhs)
     free = np.asarray(free)
     return float(np.abs(r[free]).max() / size[free].max())
+
+
+# ------------------------------------------------------------------------------------------ markers
+# `build_addon.py test` runs the suite in legs selected by these markers: the core suite (neither) under
+# every Python, `blender` under every PyPI bpy release of the matrix, `gui` once with Debian's Blender 3.4.
+MARKERS = {
+    "blender": "the headless Blender suite: needs PyPI bpy (run under every bpy release of the matrix)",
+    "gui": "Debian's Blender 3.4: a real window under Xvfb, or the legacy (bl_info) install",
+    "slow": "a long run of code the quicker tests also cover (large meshes); left out of `test --quick` and "
+            "of the sanitizer job",
+    "no_sanitizer": "left out of the ASan/UBSan job: runs no native code, or measures memory, which ASan changes",
+}
+
+
+def pytest_configure(config):
+    for name, text in MARKERS.items():
+        config.addinivalue_line("markers", f"{name}: {text}")
+
+
+# ------------------------------------------------------------------------------------------ the packaged add-on
+PACKAGE_SOURCES = [ROOT / "addon" / "nfield", ROOT / "native", ROOT / "CMakeLists.txt", ROOT / "build_addon.py"]
+
+
+def _newest_source_mtime() -> float:
+    newest = 0.0
+    for src in PACKAGE_SOURCES:
+        paths = [src] if src.is_file() else [p for p in src.rglob("*") if p.is_file() and "__pycache__" not in p.parts
+                                             and not p.name.startswith("_native")]
+        for p in paths:
+            newest = max(newest, p.stat().st_mtime)
+    return newest
+
+
+def package_version() -> str:
+    for line in (ROOT / "addon" / "nfield" / "__init__.py").read_text().splitlines():
+        if line.startswith("__version__"):
+            return line.split("=")[1].strip().strip('"')
+    raise AssertionError("addon/nfield/__init__.py has no __version__")
+
+
+@pytest.fixture(scope="session")
+def addon_zip() -> Path:
+    """dist/nfield-<version>-linux-x64.zip (the extension with a compiled module per Python set up),
+    rebuilt with `build_addon.py package` when older than a source. `build_addon.py test` packages it before
+    the Blender legs, so each leg reuses it. Runs build_addon.py with the system python3 (standard library
+    only), so packaging never depends on the interpreter running the tests."""
+    import shutil
+    import subprocess
+
+    z = ROOT / "dist" / f"nfield-{package_version()}-linux-x64.zip"
+    if not z.exists() or z.stat().st_mtime < _newest_source_mtime():
+        python = shutil.which("python3") or sys.executable
+        proc = subprocess.run([python, str(ROOT / "build_addon.py"), "package"], cwd=ROOT,
+                              capture_output=True, text=True, timeout=1800)
+        assert proc.returncode == 0, f"build_addon.py package failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    assert z.is_file()
+    return z
+
+
+# Files that need PyPI bpy at import time: not even imported when the marker expression deselects
+# `blender` (the core legs then never load bpy, and under a Python without bpy nothing is skipped either).
+BLENDER_ONLY_FILES = {"test_blender_headless.py"}
+
+
+def pytest_ignore_collect(collection_path, config):
+    if collection_path.name not in BLENDER_ONLY_FILES:
+        return None
+    markexpr = config.getoption("markexpr", "") or ""
+    if not markexpr:
+        return None
+    from _pytest.mark.expression import Expression  # pytest's own -m evaluator
+
+    selected = Expression.compile(markexpr).evaluate(lambda name, **_kw: name == "blender")
+    return True if not selected else None
+
+
+# ------------------------------------------------------------------------------------------ PyPI bpy processes
+def bpy_exit_crashes() -> bool:
+    """True in a process that imported PyPI bpy older than 4.3. That module crashes (SIGSEGV in
+    bpy_class_free, called from SpaceType's static destructor after Python was finalized) at interpreter exit
+    once any add-on has registered a property with an update callback, even after unregistering it: a Blender
+    bug, reproduced without nfield by six lines (a PropertyGroup with `IntProperty(update=f)`, registered,
+    then exit) in bpy 4.2.23 and absent from 4.5, 5.0 and 5.2."""
+    bpy = sys.modules.get("bpy")
+    return bpy is not None and tuple(bpy.app.version[:2]) < (4, 3)
+
+
+def end_bpy_process(code: int = 0) -> None:
+    """Ends a test process (pytest or a bpy script it started) with `code`. Where bpy's exit crashes (see
+    bpy_exit_crashes) it skips the static destructors with os._exit after flushing the output; everything
+    the process had to do is done by then. Elsewhere a normal exit."""
+    if bpy_exit_crashes():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session, exitstatus):
+    session.config._nfield_exitstatus = int(exitstatus)
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    if bpy_exit_crashes():  # see there: pytest's own exit would end in SIGSEGV after a complete, reported run
+        end_bpy_process(getattr(config, "_nfield_exitstatus", 0))

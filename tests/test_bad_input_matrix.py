@@ -593,7 +593,7 @@ core.native()
 path = sys.argv[2]
 with open(path, "w") as fh:
     fh.write("OFF\n%d %d 0\n" % (len(V), len(F)))
-    fh.writelines("%r %r %r\n" % tuple(v) for v in V)
+    fh.writelines("%r %r %r\n" % tuple(map(float, v)) for v in V)  # float: numpy 2's repr is np.float64(...)
     fh.writelines("3 %d %d %d\n" % tuple(f) for f in F)
 used = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
 resource.setrlimit(resource.RLIMIT_AS, (used + 64 * 2**20, resource.getrlimit(resource.RLIMIT_AS)[1]))
@@ -607,6 +607,7 @@ print("CLI exit", main(["solve", path, "--n", "4", "--order", "4"]))
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs RLIMIT_AS and /proc (Linux)")
+@pytest.mark.no_sanitizer  # ASan reserves terabytes of address space: RLIMIT_AS cannot be lowered under it
 def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
     """A real std::bad_alloc (address space limited to 64 MB above what the process uses, in a subprocess):
     the core raises MemoryError, the CLI exits 2 with one line (not exit 1, not a traceback)."""
@@ -621,6 +622,7 @@ def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------ docs
+@pytest.mark.no_sanitizer  # reads docs/, no native code
 def test_docs_list_every_case():
     """docs/hardening.md's "Bad input" section names every case of the table (and no unknown one)."""
     text = (ROOT / "docs" / "hardening.md").read_text()

@@ -25,21 +25,20 @@ Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing
 """
 from __future__ import annotations
 
-import glob
 import json
 import math
 import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
-import zipfile
 from pathlib import Path
 
 import pytest
 
 from conftest import system_blender_env
+
+pytestmark = pytest.mark.gui
 
 ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "tests" / "blender_scripts" / "window_session.py"
@@ -55,33 +54,6 @@ def _missing() -> str:
     if not os.path.exists(BLENDER):
         return f"GUI Blender not found at {BLENDER} (apt-get install blender)"
     return ""
-
-
-def _addon_zip(tmp: Path) -> Path:
-    """The packaged add-on: build it with build_addon.py package; if packaging is unavailable, zip the
-    add-on folder the same way (top-level folder nfield/, compiled module inside). A dist zip newer than
-    every source file of the add-on and of native/ is reused (packaging rebuilds the native module)."""
-    zips = sorted(glob.glob(str(ROOT / "dist" / "nfield-*.zip")), key=os.path.getmtime)
-    if zips:
-        newest_src = max(p.stat().st_mtime for d in ("addon/nfield", "native") for p in (ROOT / d).rglob("*")
-                         if p.is_file() and "__pycache__" not in p.parts)
-        if os.path.getmtime(zips[-1]) >= newest_src:
-            return Path(zips[-1])
-    proc = subprocess.run([sys.executable, str(ROOT / "build_addon.py"), "package"], cwd=ROOT,
-                          capture_output=True, text=True, timeout=900)
-    zips = sorted(glob.glob(str(ROOT / "dist" / "nfield-*.zip")), key=os.path.getmtime)
-    if proc.returncode == 0 and zips:
-        return Path(zips[-1])
-    print(f"build_addon.py package failed (exit {proc.returncode}): {proc.stderr.strip()[-300:]}; "
-          f"zipping addon/nfield directly")
-    out = tmp / "nfield-folder.zip"
-    src = ROOT / "addon" / "nfield"
-    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
-        for p in sorted(src.rglob("*")):
-            if "__pycache__" in p.parts or p.is_dir() or p.suffix == ".tmp":
-                continue
-            zf.write(p, Path("nfield") / p.relative_to(src))
-    return out
 
 
 def _free_display() -> int:
@@ -106,12 +78,11 @@ def _xdo(env, *args):
     subprocess.run(["xdotool", *map(str, args)], env=env, check=True, timeout=30)
 
 
-def test_constraint_drag_in_real_window(tmp_path):
+def test_constraint_drag_in_real_window(tmp_path, addon_zip):
     reason = _missing()
     if reason:
         print(f"SKIP: {reason}")
         pytest.skip(reason)
-    addon_zip = _addon_zip(tmp_path)
     display = _free_display()
     env = system_blender_env()
     env["DISPLAY"] = f":{display}"
@@ -145,7 +116,7 @@ def test_constraint_drag_in_real_window(tmp_path):
         _xdo(env, "mousemove", "--window", win, px, py)
         time.sleep(0.5)
         _xdo(env, "mousedown", 1)
-        time.sleep(0.3)
+        _wait_file(work / "pressed.json", blender, 60)  # Blender handled the press: now drag
         steps = 12
         for i in range(1, steps + 1):
             _xdo(env, "mousemove", "--window", win, round(px + (tx - px) * i / steps),

@@ -288,6 +288,7 @@ def test_solve_human_summary(tmp_path):
 
 
 @needs_native
+@pytest.mark.slow
 def test_solve_rocker_examples(tmp_path):
     cons = json.loads((EXAMPLES / "rocker_constraints.json").read_text())
     sing = json.loads((EXAMPLES / "rocker_singularities.json").read_text())

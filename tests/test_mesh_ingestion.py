@@ -304,7 +304,7 @@ def _write_obj_polygons(path):
     with open(path, "w") as fh:
         fh.write("# test\n")
         for p in V:
-            fh.write(f"v {p[0]!r} {p[1]!r} {p[2]!r}\n")
+            fh.write("v %r %r %r\n" % tuple(map(float, p)))
         fh.write("vn 0 0 1\nvt 0 0\n")
         for k, poly in enumerate(polys):
             if k % 2:
@@ -344,7 +344,7 @@ def _write_off(path, V, F):
         fh.write("OFF\n# comment\n")
         fh.write(f"{len(V)} {len(F)} 0\n")
         for p in V:
-            fh.write(f"{p[0]!r} {p[1]!r} {p[2]!r}\n")
+            fh.write("%r %r %r\n" % tuple(map(float, p)))
         for f in F:
             fh.write(f"3 {f[0]} {f[1]} {f[2]}\n")
 
@@ -355,7 +355,7 @@ def _write_ply_ascii(path, V, F):
         fh.write(f"element vertex {len(V)}\nproperty double x\nproperty double y\nproperty double z\n")
         fh.write(f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n")
         for p in V:
-            fh.write(f"{p[0]!r} {p[1]!r} {p[2]!r}\n")
+            fh.write("%r %r %r\n" % tuple(map(float, p)))
         for f in F:
             fh.write(f"3 {f[0]} {f[1]} {f[2]}\n")
 

@@ -36,6 +36,10 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.blender
+
 ROOT = Path(__file__).resolve().parent.parent
 SIZE = 64
 SAMPLES = 16
@@ -185,7 +189,6 @@ def _mad(a, b) -> float:
 
 def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path):
     import numpy as np
-    import pytest
 
     if importlib.util.find_spec("bpy") is None:
         pytest.skip("bpy (PyPI) is not installed")
@@ -228,7 +231,6 @@ def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path):
         info["driven"]
     attr, direction, amount, smooth = info["point_source"]
     assert attr == smooth and direction == "PERPENDICULAR" and abs(amount - 0.3) < 1e-6, info["point_source"]
-    assert seconds < 90, f"rendering test took {seconds:.0f} s"
 
 
 if __name__ == "__main__":
@@ -237,3 +239,6 @@ if __name__ == "__main__":
     result = _render_all(out)
     sys.stdout.flush()
     print(json.dumps(result))
+    from conftest import end_bpy_process
+
+    end_bpy_process(0)

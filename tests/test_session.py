@@ -240,7 +240,8 @@ class RandomEditor:
 
 
 @pytest.mark.parametrize("mesh_name,align,seed", [
-    ("rocker-arm.obj", "curvature-max", 1), ("rocker-arm.obj", "none", 2),
+    pytest.param("rocker-arm.obj", "curvature-max", 1, marks=pytest.mark.slow),
+    pytest.param("rocker-arm.obj", "none", 2, marks=pytest.mark.slow),
     ("bumpy", "curvature-max", 3), ("bumpy", "none", 4),
 ])
 def test_incremental_equals_from_scratch(mesh_name, align, seed):
@@ -276,6 +277,7 @@ def test_incremental_equals_from_scratch(mesh_name, align, seed):
 
 
 # ============================================================================== 2. costs
+@pytest.mark.slow
 def test_costs_of_edits_and_refactoring():
     mesh = data_mesh("rocker-arm.obj")
     rng = np.random.default_rng(11)
@@ -541,6 +543,7 @@ def _layer_vectors(s: DesignSession, faces: np.ndarray) -> np.ndarray:
     return res.directions[faces] * np.abs(res.raw_solution[tris])[:, None]
 
 
+@pytest.mark.slow
 def test_restore_layer_roundtrip_and_after_release():
     """restore_layer (reload / undo of a committed layer) reproduces the layer's values, and a layer
     restored right after another was released (no solve in between: the undo of a release, or a reload)

@@ -2,8 +2,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from nfield.core import shading
+
+pytestmark = pytest.mark.no_sanitizer  # pure NumPy
 
 
 def _grid(nx=6, ny=5, bump=0.2):

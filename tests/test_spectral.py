@@ -191,6 +191,7 @@ def test_complete_basis_vector_spline_equals_exact():
 
 
 # ============================================================================== 3. convergence in k
+@pytest.mark.slow
 def test_reduced_approaches_exact_as_k_grows(tmp_path, fandisk_ops):
     """Fig. 8 on a smaller mesh: 4 trials of 8 random direction constraints (biharmonic, n = 4) against
     the exact spline, for bases of 25, 50, 100 and 200 eigenfields (truncations of one computed basis).
@@ -322,6 +323,7 @@ def test_default_cache_dir_follows_environment(tmp_path, monkeypatch):
 
 
 # ============================================================================== 6. cancellation, GIL
+@pytest.mark.slow
 def test_cancel_keeps_session_and_gil_is_released(fandisk_ops, tmp_path):
     mesh, _ops = fandisk_ops
     rng = np.random.default_rng(2)

@@ -63,7 +63,8 @@ def _random_tangent_constraints(mesh, k, seed):
 
 
 # =========================================================================== hard constraints
-HARD_MESHES = ["sphere.obj", "rocker-arm.obj", "camelhead.off"]
+HARD_MESHES = ["sphere.obj", pytest.param("rocker-arm.obj", marks=pytest.mark.slow),
+               pytest.param("camelhead.off", marks=pytest.mark.slow)]
 
 
 @pytest.mark.parametrize("name", HARD_MESHES)
@@ -468,6 +469,7 @@ def _coords_in_frame(ops, w, e1, e2):
     return np.abs(w) * np.exp(1j * n * beta)
 
 
+@pytest.mark.slow
 def test_fig10_biharmonic_continues_rate_of_change():
     """Paper Fig. 10 (4-vector field). Unit sphere icosphere(4); a band of faces south of the equator
     (0 < s < 0.32, s = theta - pi/2) is frozen by n-vector constraints to a rotationally symmetric

@@ -159,6 +159,7 @@ def _dual_adjacency(mesh: Mesh) -> set:
 
 
 # ---------------------------------------------------------------------------------------------- tests
+@pytest.mark.slow
 def test_strokes_cover_the_bunny(bunny, bunny2_strokes):
     s = bunny2_strokes
     assert s.num_strokes > 20 and s.num_points > 1000
@@ -171,7 +172,7 @@ def test_strokes_cover_the_bunny(bunny, bunny2_strokes):
     assert min(s.lengths) >= 2 * 0.02 * bunny.native.bounding_box_diagonal * (1 - 1e-12)  # default min_length
 
 
-@pytest.mark.parametrize("which", ["bunny2", "fandisk4"])
+@pytest.mark.parametrize("which", [pytest.param("bunny2", marks=pytest.mark.slow), "fandisk4"])
 def test_segments_follow_the_field(which, request):
     if which == "bunny2":
         mesh, field, strokes = (request.getfixturevalue(k) for k in ("bunny", "bunny2", "bunny2_strokes"))
@@ -183,7 +184,7 @@ def test_segments_follow_the_field(which, request):
     assert err.max() < 1e-6
 
 
-@pytest.mark.parametrize("which", ["bunny2_strokes", "fandisk4_cross"])
+@pytest.mark.parametrize("which", [pytest.param("bunny2_strokes", marks=pytest.mark.slow), "fandisk4_cross"])
 def test_separation_between_strokes(which, request):
     strokes: Strokes = request.getfixturevalue(which)
     D, h = strokes.test_distance, strokes.step

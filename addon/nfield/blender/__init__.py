@@ -60,7 +60,20 @@ def _app_handlers() -> tuple:
             (bpy.app.handlers.redo_post, session_cache.on_undo_redo))
 
 
+def _unregister_at_exit() -> None:
+    if _registered:
+        unregister()
+
+
 def register():
+    if not bpy.app.binary_path and not _registered:
+        # Blender as a Python module (PyPI bpy): nothing unregisters add-ons when the interpreter exits, and
+        # bpy 4.5 then hangs in its exit handlers when a property with an update callback is still registered
+        # (a plain PropertyGroup with update= shows it). Unregistering first lets the process exit.
+        import atexit
+
+        atexit.unregister(_unregister_at_exit)
+        atexit.register(_unregister_at_exit)
     state.native_problem = state.native_error() or ""
     if state.native_problem:
         print(f"nfield: {state.native_problem}")

@@ -47,7 +47,7 @@ def _describe_failure(exc: BaseException) -> str:
         found = []
     here = f"{sys.version_info.major}.{sys.version_info.minor}"
     rebuild = f"run build_addon.py build --python {sys.executable}"
-    versions = sorted({v for v in (_built_for(f) for f in found) if v})
+    versions = sorted({v for v in (_built_for(f) for f in found) if v}, key=lambda v: tuple(map(int, v.split("."))))
     if not found:
         what = f"no compiled module (_native*.so / _native*.pyd) is in {folder}; this is Python {here}"
     elif versions and here not in versions:
