@@ -17,6 +17,7 @@
 #include "nfield/mesh.hpp"
 #include "nfield/memory_guard.hpp"
 #include "nfield/mesh_io.hpp"
+#include "nfield/mirror.hpp"
 #include "nfield/operators.hpp"
 #include "nfield/reduced_solver.hpp"
 #include "nfield/spectral_basis.hpp"
@@ -181,6 +182,8 @@ SplineKind parse_kind(const std::string& kind) {
 }
 
 }  // namespace
+
+void bind_guides(py::module_& m);  // bind_guides.cpp
 
 PYBIND11_MODULE(_native, m) {
   m.doc() = "nfield native solver: n-symmetry direction field splines on triangle meshes";
@@ -462,7 +465,7 @@ PYBIND11_MODULE(_native, m) {
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
                        const std::string& kind, double lambda_override, const py::object& progress,
                        const py::object& frozen_faces, const py::object& frozen_values, const py::object& anchor_faces,
-                       bool cache_columns) {
+                       bool cache_columns, const py::object& alignment_weight) {
              const ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
              const PythonProgress cb = wrap_progress(progress);
@@ -490,19 +493,39 @@ PYBIND11_MODULE(_native, m) {
                  anchors.push_back(static_cast<int>(f));
                }
              }
+             Eigen::VectorXd weight;
+             if (!alignment_weight.is_none()) {
+               const DoubleArray w = alignment_weight.cast<DoubleArray>();
+               if (w.ndim() != 1) throw InputError("alignment_weight must be a 1-D array (one weight per face)");
+               weight = Eigen::Map<const Eigen::VectorXd>(w.data(), w.shape(0));
+             }
              return run_with_progress(cb, [&] {
                py::gil_scoped_release release;
                return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, frozen, anchors,
-                                      cache_columns);
+                                      cache_columns, weight);
              });
            }),
            py::arg("ops"), py::arg("order") = 2, py::arg("strength") = 1.0, py::arg("alignment") = py::none(),
            py::arg("kind") = "direction", py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN(),
            py::arg("progress") = py::none(), py::arg("frozen_faces") = py::none(),
            py::arg("frozen_values") = py::none(), py::arg("anchor_faces") = py::none(),
-           py::arg("cache_columns") = true,
-           "Factor V = E_order - lambda M over the faces that are neither frozen (they keep their values) nor anchors "
-           "(faces whose vector constraints are substituted); cache_columns=False: a one-shot solver")
+           py::arg("cache_columns") = true, py::arg("alignment_weight") = py::none(),
+           "Factor V = E_order - lambda M_W over the faces that are neither frozen (they keep their values) nor "
+           "anchors (faces whose vector constraints are substituted); W the per-face alignment weight (1 by default); "
+           "cache_columns=False: a one-shot solver")
+      .def("set_alignment", [](ExactSolver& s, const py::object& alignment) {
+        const ComplexVector a = optional_alignment(alignment);
+        py::gil_scoped_release release;
+        s.set_alignment(a);
+      }, py::arg("alignment"), "New guide target values (W g per face): right-hand side only, no refactorization")
+      .def("set_symmetry", [](ExactSolver& s, const py::object& mirror) {
+        std::shared_ptr<const MirrorMap> m;
+        if (!mirror.is_none()) m = mirror.cast<std::shared_ptr<MirrorMap>>();
+        py::gil_scoped_release release;
+        s.set_symmetry(m);
+      }, py::arg("mirror"), "Solve on the mirror-symmetric fields of a MirrorMap (None: no symmetry)")
+      .def_property_readonly("symmetric", &ExactSolver::symmetric)
+      .def_property_readonly("symmetry_corrections", &ExactSolver::symmetry_corrections)
       .def("set_direction_constraint", &ExactSolver::set_direction_constraint, py::arg("face"), py::arg("d"))
       .def("set_vector_constraint", &ExactSolver::set_vector_constraint, py::arg("face"), py::arg("value"))
       .def("remove_constraint", &ExactSolver::remove_constraint, py::arg("face"))
@@ -735,4 +758,6 @@ PYBIND11_MODULE(_native, m) {
         "Evenly spaced streamlines of a per-face field (see streamlines.hpp): "
         "(points list of (k,3), faces list of (k,), families, lengths, stats dict)");
   // ---- END streamlines ----
+
+  bind_guides(m);
 }
