@@ -442,3 +442,16 @@ def test_target_only_edit_reuses_the_factorization():
     assert np.abs(r.raw_solution - fresh.raw_solution).max() < 1e-10 * np.abs(fresh.raw_solution).max()
     s.set_alignment_weight(np.where(theta > 0, 2.0, 1.0))
     assert s.pending_work() == "factorization"  # the weights are part of V
+
+
+def test_all_zero_weights_on_a_flat_piece_stay_well_posed():
+    """A flat square has a parallel field in the kernel of E_m: with every alignment weight 0 the system would
+    be singular. Such a component is solved as the unaligned spline (weight 1, target 0) and reported; the
+    result is then exactly the plain solve without weights."""
+    V, F = meshgen.grid(12, 12, random_diagonals=True, seed=2)
+    mesh = Mesh(V, F)
+    cons = [nfield_core.DirectionConstraint(5, (1.0, 0.2, 0.0)), nfield_core.DirectionConstraint(140, (0.3, 1.0, 0.0))]
+    r0 = solve(mesh, n=4, order=2, align="none", constraints=cons)
+    r1 = solve(mesh, n=4, order=2, align="none", constraints=cons, alignment_weight=np.zeros(len(F)))
+    assert r1.guides.unweighted_components == 1
+    assert np.abs(r1.raw_solution - r0.raw_solution).max() < 1e-12 * np.abs(r0.raw_solution).max()

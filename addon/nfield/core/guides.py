@@ -236,6 +236,7 @@ class GuideReport:
     missed_curves: list[str] = field(default_factory=list)
     cuts: dict | None = None
     symmetry: dict | None = None
+    unweighted_components: int = 0   # components whose weights were all 0: solved with weight 1, target 0
 
     def to_dict(self) -> dict:
         return {
@@ -248,6 +249,7 @@ class GuideReport:
             "missed_curves": list(self.missed_curves),
             "cuts": self.cuts,
             "symmetry": self.symmetry,
+            "unweighted_components": self.unweighted_components,
         }
 
     def summary(self) -> list[str]:

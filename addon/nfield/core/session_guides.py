@@ -322,6 +322,18 @@ class SessionGuides:
             self._stiffness, self._stiffness_key = local_stiffness(ops, order), key
         value, weight, report = self._engine.guide_field(base, self._guide, n, self._comb_token, areas,
                                                          self._stiffness)
+        if weight is not None:
+            # A component on which every weight is 0 has no alignment term at all; on a flat or developable piece
+            # E_m alone is singular there. Such a component is solved as the paper's unaligned spline: weight 1,
+            # target 0 (its field follows the constraints and smoothness only, as intended).
+            comp = np.asarray(self._solve_native_mesh().face_component)
+            active = comp >= 0
+            total = np.bincount(comp[active], weights=(weight * areas)[active], minlength=int(comp.max()) + 1)
+            dead = np.flatnonzero(total <= 0)
+            if dead.size:
+                weight = weight.copy()
+                weight[active & np.isin(comp, dead)] = 1.0
+                report.unweighted_components = int(dead.size)
         hard = self._engine.hard_directions(self._guide, n, report)
         if self._cut is not None:
             info = self._cut[1]
