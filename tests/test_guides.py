@@ -455,3 +455,33 @@ def test_all_zero_weights_on_a_flat_piece_stay_well_posed():
     r1 = solve(mesh, n=4, order=2, align="none", constraints=cons, alignment_weight=np.zeros(len(F)))
     assert r1.guides.unweighted_components == 1
     assert np.abs(r1.raw_solution - r0.raw_solution).max() < 1e-12 * np.abs(r0.raw_solution).max()
+
+
+def test_spectral_mode_with_guides():
+    """Spectral mode keeps targets-only guides in the basis (the alignment's projection changes, Lambda stays
+    diagonal); non-uniform weights and mirror symmetry fall back to the exact solver; cuts get the basis of the
+    cut mesh."""
+    mesh = core_mesh("sphere.obj")
+    s = DesignSession(mesh, n=2, order=2, align="curvature-max", mode="spectral", k=40, cache_dir=False)
+    r0 = s.solve()
+    assert r0.mode == "spectral"
+    s.set_alignment_rotation(np.full(mesh.num_faces, math.pi / 2))  # e^{i n pi/2} = -1 for n = 2
+    r1 = s.solve()
+    assert r1.mode == "spectral"
+    assert np.abs(r1.raw_solution + r0.raw_solution).max() < 1e-12 * np.abs(r0.raw_solution).max()
+    s.set_features(FeatureGuide(boundary=False, sharp_angle=4.5))  # the sphere's edges bend by 3.2-5.4 degrees
+    r2 = s.solve()
+    assert r2.guides.feature_edges > 0 and r2.mode == "exact"  # soft features: non-uniform weights
+    s.set_features(None)
+    s.set_alignment_weight(np.linspace(0.5, 1.5, mesh.num_faces))
+    assert s.solve().mode == "exact"
+    s.set_alignment_weight(None)
+    s.set_symmetry(Symmetry("x", tolerance=1e-3, partial=True))
+    assert s.solve().mode == "exact"
+    s.set_symmetry(None)
+    V = mesh.vertices
+    E = np.asarray(native().GuideGeometry(mesh.native).edges())
+    s.set_cuts(E[np.abs(V[E[:, 0], 2]) + np.abs(V[E[:, 1], 2]) < 0.15][:20])
+    r3 = s.solve()
+    assert r3.mode == "spectral" and s._basis.mesh_hash == s._solve_native_mesh().content_hash
+    assert s._basis.mesh_hash != mesh.native.content_hash
