@@ -122,8 +122,9 @@ def _symmetry_spec(s: str) -> tuple:
     t = 1e-5
     if tol:
         t = _convert(tol, float, "symmetry tolerance must be a number")
-        if not (math.isfinite(t) and 0 <= t <= 1):
-            raise argparse.ArgumentTypeError(f"symmetry tolerance must lie in [0, 1] (got {tol})")
+        if not (math.isfinite(t) and 0 <= t <= 0.1):
+            raise argparse.ArgumentTypeError(f"symmetry tolerance must lie in [0, 0.1] (fraction of the diagonal; "
+                                             f"got {tol})")
     return axis, t
 
 

@@ -73,6 +73,9 @@ MirrorMap::MirrorMap(const TriangleMesh& mesh, const TangentFrames& frames, int 
   if (axis < 0 || axis > 2) throw ParameterError("mirror axis must be 0, 1 or 2 (x, y, z)");
   if (!(tolerance >= 0) || !std::isfinite(tolerance)) throw ParameterError("mirror tolerance must be a number >= 0");
   if (!std::isfinite(offset)) throw ParameterError("mirror plane offset must be finite");
+  if (tolerance > 0.1 * mesh.bounding_box_diagonal())
+    throw ParameterError("mirror tolerance must be at most 0.1 of the bounding-box diagonal (beyond, a vertex's "
+                         "mirror image meets many candidates)");
   const int nv = mesh.num_vertices(), nf = mesh.num_faces();
   const auto& P = mesh.positions();
   const auto& F = mesh.faces();

@@ -161,15 +161,29 @@ void ExactSolver::set_symmetry(std::shared_ptr<const MirrorMap> mirror) {
   }
   mirror_ = std::move(mirror);
   smoothest_.resize(0);
+  // On symmetric fields only the symmetrized weights (W_f + W_g) / 2 matter (A_f = A_g, |z_f| = |z_g|); with
+  // them V commutes with the mirror, which the symmetric solve relies on. Weights that are not yet symmetric
+  // are symmetrized here (a new factorization).
+  bool refactor = false;
+  if (mirror_ && weight_per_face_.size() > 0) {
+    Eigen::VectorXd w = weight_per_face_;
+    for (int f = 0; f < static_cast<int>(w.size()); ++f) {
+      const int g = mirror_->partner(f);
+      if (g >= 0) w[f] = 0.5 * (weight_per_face_[f] + weight_per_face_[g]);
+    }
+    if (w != weight_per_face_) weight_per_face_ = std::move(w), refactor = true;
+  }
   std::vector<int> vector_faces;
   for (const auto& [f, c] : constraints_.faces)
     if (c.kind == ConstraintSet::Kind::Vector) vector_faces.push_back(f);
   if (!anchors_.empty() && anchor_closure(vector_faces) != anchors_) {
     anchors_ = anchor_closure(vector_faces);
-    factor({});
-  } else {
-    update_alignment();
+    refactor = true;
   }
+  if (refactor)
+    factor({});
+  else
+    update_alignment();
 }
 
 ComplexVector ExactSolver::project(const ComplexVector& z) const {

@@ -39,6 +39,9 @@ __all__ = [
 FEATURE_MODES = ("soft", "hard")
 FALLOFFS = ("smooth", "linear", "constant")
 MIRROR_AXES = ("x", "y", "z")
+#: largest mirror matching tolerance (fraction of the diagonal): beyond it a vertex's image meets many
+#: candidates and the matching means little (and grows quadratic in cost)
+MAX_MIRROR_TOLERANCE = 0.1
 #: two hard guide directions on one face that differ by more than this (degrees of field angle, modulo the
 #: n-symmetry) contradict each other: the face gets no constraint and is reported
 HARD_MERGE_TOLERANCE_DEGREES = 1.0
@@ -197,7 +200,8 @@ class CurveGuide:
 class Symmetry:
     """Mirror symmetry about the plane {axis = offset} (mesh coordinates).
 
-    tolerance : fraction of the bounding-box diagonal within which a vertex's mirror image must meet a vertex.
+    tolerance : fraction of the bounding-box diagonal within which a vertex's mirror image must meet a vertex
+        (at most 0.1).
     partial : what to do with faces that have no mirror partner: False refuses (ValueError listing them),
         True applies the symmetry to the matched faces only.
     """
@@ -211,7 +215,8 @@ class Symmetry:
         if self.axis not in MIRROR_AXES:
             raise ValueError(f"mirror axis must be 'x', 'y' or 'z', got {self.axis!r}")
         object.__setattr__(self, "offset", _finite(self.offset, "mirror plane offset"))
-        object.__setattr__(self, "tolerance", _finite(self.tolerance, "mirror tolerance", 0.0, 1.0))
+        object.__setattr__(self, "tolerance", _finite(self.tolerance, "mirror tolerance (fraction of the diagonal)",
+                                                      0.0, MAX_MIRROR_TOLERANCE))
         object.__setattr__(self, "partial", bool(self.partial))
 
 

@@ -322,6 +322,13 @@ class SessionGuides:
             self._stiffness, self._stiffness_key = local_stiffness(ops, order), key
         value, weight, report = self._engine.guide_field(base, self._guide, n, self._comb_token, areas,
                                                          self._stiffness)
+        if weight is not None and self._mirror is not None:
+            # On symmetric fields only the symmetrized weight matters (docs/guides.md): passing it keeps V
+            # commuting with the mirror (and spares the solver a second factorization)
+            partner = np.asarray(self._mirror.partner)
+            matched = partner >= 0
+            weight = weight.copy()
+            weight[matched] = 0.5 * (weight[matched] + weight[partner[matched]])
         if weight is not None:
             # A component on which every weight is 0 has no alignment term at all; on a flat or developable piece
             # E_m alone is singular there. Such a component is solved as the paper's unaligned spline: weight 1,

@@ -31,7 +31,7 @@ int parse_mirror_axis(const std::string& name);
 
 class MirrorMap {
  public:
-  /// tolerance >= 0 (mesh units); ParameterError for a bad axis, tolerance or offset.
+  /// 0 <= tolerance <= 0.1 bounding-box diagonal (mesh units); ParameterError for a bad axis, tolerance or offset.
   MirrorMap(const TriangleMesh& mesh, const TangentFrames& frames, int axis, double offset, double tolerance);
 
   int axis() const { return axis_; }
