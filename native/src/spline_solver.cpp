@@ -116,7 +116,11 @@ void ExactSolver::factor(const ProgressCallback& progress) {
     for (const auto& [f, value] : frozen_) z[system_.fixed_of_face[f]] = value;
     b0_ -= system_.coupling * z;
   }
-  base_response_ = (cache_columns_ && factor_) ? factor_->solve(b0_) : ComplexVector();
+  // (b0 = 0 without alignment and frozen values: its response is zero, no solve.)
+  if (cache_columns_ && factor_)
+    base_response_ = b0_.isZero(0.0) ? ComplexVector(ComplexVector::Zero(N)) : factor_->solve(b0_);
+  else
+    base_response_ = ComplexVector();
   if (progress && !progress(1.0)) throw Cancelled("factorization cancelled");
 }
 
