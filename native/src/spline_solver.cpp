@@ -208,10 +208,11 @@ ComplexVector ExactSolver::solve() {
   std::vector<bool> has_data = component_has_alignment_, has_rows(ncomp, false);
   std::unordered_map<int, Complex> loads;  // face -> weight of the unit load (spikes, anchors in live solves)
   ComplexVector b = b0_;
-  if (!anchors_.empty()) {
+  if (!anchors_.empty() && direct_) {  // -V_UA z_A into the right-hand side
     ComplexVector z = ComplexVector::Zero(static_cast<Eigen::Index>(system_.fixed_faces.size()));
     for (int a : anchors_) z[system_.fixed_of_face[a]] = fixed_value(a);
-    if (direct_) b -= system_.coupling * z;
+    b -= system_.coupling * z;
+  } else {  // the anchors' columns V^-1 V_UF e_a with weights -z_a
     for (int a : anchors_) loads[a] = -fixed_value(a);
   }
   const double mean_area = mesh.total_area() / o.num_unknowns();
