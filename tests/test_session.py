@@ -254,13 +254,19 @@ def test_incremental_equals_from_scratch(mesh_name, align, seed):
     for step in range(1, 41):
         ed.step()
         assert session.constraints == ed.expected_constraints()
+        # A vector spline without alignment substitutes the vector constraints it was factored with (anchors);
+        # removing one of them refactors (spline_solver.hpp). The solver says so beforehand.
+        vec_tris = sorted(mesh.face_triangle(f) for f in ed.vecs)
+        stale = prev_solver is not None and prev_solver.needs_refactorization(np.asarray(vec_tris, np.int64))
         res = session.solve(details=False)
         # The native solver is rebuilt only when the spline kind changes (vector spline iff there are
-        # vector constraints and no direction constraint, as in core.solve); every other edit must reuse
-        # the factorization and its cached columns - otherwise this test would not test incremental work.
+        # vector constraints and no direction constraint, as in core.solve) or its anchors went stale; every
+        # other edit must reuse the factorization and its cached columns - otherwise this test would not test
+        # incremental work.
         kind = "vector" if ed.vecs and not ed.dirs else "direction"
         if prev_solver is not None:
-            assert (session._solver is prev_solver) == (kind == prev_kind), (step, kind, prev_kind)
+            assert (session._solver is prev_solver) == (kind == prev_kind and not stale), (step, kind, prev_kind)
+            assert session._solver.num_factorizations == 1  # the session refactors, not the native solver
             kept += session._solver is prev_solver
         prev_solver, prev_kind = session._solver, kind
         check_constraints(session, res.raw_solution)
@@ -270,8 +276,9 @@ def test_incremental_equals_from_scratch(mesh_name, align, seed):
             compared += 1
     # the sequence really exercised every kind of edit and mostly incremental solves
     assert all(c > 0 for c in ed.count.values()), ed.count
-    # kept: solves that reused the factorization; measured 37-39 of 39 (a refactor only on a switch
-    # between vector and direction spline). 25 still proves the incremental path carried the sequence.
+    # kept: solves that reused the factorization; measured 35-39 of 39 (a refactor only on a switch
+    # between vector and direction spline, or a removed anchor). 25 still proves the incremental path carried
+    # the sequence.
     assert kept >= 25 and compared == 8, (kept, ed.count)
     print(ed.count, "kept", kept)
 
@@ -844,3 +851,24 @@ def test_pending_work_tells_when_a_solve_must_factor(tmp_path):
     assert s.pending_work() is None
     fresh = DesignSession(mesh, n=2, order=3, strength=2.0, mode="spectral", k=30, cache_dir=tmp_path)
     assert fresh.pending_work() is None  # the basis is in the disk cache
+    # an n-vector spline without alignment (lambda = 0) substitutes its vector constraints: adding one is
+    # incremental, removing one it was factored with refactors, and pending_work() says so
+    v = DesignSession(mesh, n=1, order=2)
+    for f in (3, 9):
+        v.set_vector(f, tangent(mesh, f, rng))
+    v.solve()
+    solver = v._solver
+    assert list(solver.anchor_faces) == [3, 9]
+    v.set_vector(20, tangent(mesh, 20, rng))
+    assert v.pending_work() is None
+    v.solve()
+    assert v._solver is solver
+    v.remove(20)
+    assert v.pending_work() is None
+    v.solve()
+    v.remove(3)
+    assert v.pending_work() == "factorization"
+    res = v.solve()
+    assert v._solver is not solver and list(v._solver.anchor_faces) == [9]
+    assert v.pending_work() is None
+    assert rel(res.raw_solution, scratch(v).raw_solution) <= REL_TOL

@@ -132,7 +132,13 @@ void ExactSolver::update_alignment() {
     for (const auto& [f, value] : frozen_) z[system_.fixed_of_face[f]] = value;
     b0_ -= system_.coupling * z;
   }
-  base_response_ = (cache_columns_ && factor_) ? factor_->solve(project(b0_)) : ComplexVector();
+  // (b0 = 0 without alignment and frozen values: its response is zero, no solve.)
+  if (cache_columns_ && factor_) {
+    const ComplexVector rhs = project(b0_);
+    base_response_ = rhs.isZero(0.0) ? ComplexVector(ComplexVector::Zero(N)) : factor_->solve(rhs);
+  } else {
+    base_response_ = ComplexVector();
+  }
 }
 
 void ExactSolver::set_alignment(const ComplexVector& alignment) {
@@ -332,10 +338,11 @@ ComplexVector ExactSolver::solve() {
   std::unordered_map<int, Complex> loads;  // face -> weight of the unit load (spikes, anchors in live solves)
   ComplexVector b = b0_;
   ComplexVector spikes = ComplexVector::Zero(N);  // the safeguard's part of b (before P)
-  if (!anchors_.empty()) {
+  if (!anchors_.empty() && direct_) {  // -V_UA z_A into the right-hand side
     ComplexVector z = ComplexVector::Zero(static_cast<Eigen::Index>(system_.fixed_faces.size()));
     for (int a : anchors_) z[system_.fixed_of_face[a]] = fixed_value(a);
-    if (direct_) b -= system_.coupling * z;
+    b -= system_.coupling * z;
+  } else {  // the anchors' columns V^-1 V_UF e_a with weights -z_a
     for (int a : anchors_) loads[a] = -fixed_value(a);
   }
   const double mean_area = mesh.total_area() / o.num_unknowns();

@@ -24,12 +24,13 @@
 //                       column. New columns are computed together: forward substitutions restricted to the
 //                       elimination-tree paths of their faces, then one blocked backward substitution.
 //       direct solve    the Gram matrix of the forward substitutions (K exactly, at 5-16% of a solve per
-//                       face), y by one solve, w by one more solve: no column at all.
+//                       face), y at the constrained faces from the same substitutions (b as one more sparse
+//                       right-hand side), w by one solve of b - D^T gamma: no column at all.
 //     A one-shot solver (cache_columns = false: nfield.core.solve and the command line) always solves directly:
-//     one factorization and two solves (one for an n-vector spline without rows). A live solver (DesignSession)
-//     computes up to kEagerColumns new columns at once; a solve that brings more new faces (the first solve of
-//     a loaded design) solves directly and leaves their columns to the next solve that brings no new face (the
-//     first re-aim), which computes them in one block.
+//     one factorization and one solve (plus a refinement step of the rows where V is ill-conditioned, see
+//     refine_rows). A live solver (DesignSession) computes up to kEagerColumns new columns at once; a solve that
+//     brings more new faces (the first solve of a loaded design) solves directly and leaves their columns to the
+//     next solve that brings no new face (the first re-aim), which computes them in one block.
 //  4. The +d safeguard (n-direction splines). u'_f = s_f d_f at direction-constrained faces (constraint_system.hpp:
 //     s_f = 100 s_0 Abar / A_f). As the conventions note warns, s alone cannot settle the sign for higher orders
 //     (the solution is linear in s without alignment), so after the solve every direction-constrained face whose
@@ -61,9 +62,19 @@
 // (order m: dual m-ring) of the unknowns matter, and the output copies every frozen value bit-identically.
 // With m >= 2 the free field joins the frozen one with a continuous derivative.
 //
-// Accuracy: solves are refined with residuals in extended precision (hermitian_factor.hpp), so a solution is
-// accurate to ~1e-12 even where V_UU is ill-conditioned (order 3-4 on flat or developable meshes, kappa up to
-// 1e11), not only backward stable. Cached columns are probed and refined the same way when needed.
+// Accuracy. Every solve is backward stable and, where V_UU is ill-conditioned, refined with residuals in extended
+// precision (hermitian_factor.hpp), so the result satisfies the first-order conditions of its problem to
+// rounding. n-vector splines (substitution, one solve) are accurate to 1e-10 or better at order 4 on a flat grid
+// (kappa 3e10; before, ~1e-4 with a regularisation that also biased the result). With constraint rows the
+// multipliers come from unrefined substitutions; refine_rows corrects the rows, and what remains is ~1e-3 kappa
+// eps (tests/test_splines.py). Cached columns are refined when condition_estimate() exceeds
+// kRefineColumnsCondition; a field summed from them carries the cancellation of their weights (~1e-3 kappa eps).
+//
+// Extending. New data enters in one of three places: the matrix and its substituted faces in
+// assemble_spline_system (per-face alignment weights change the -lambda M diagonal there, and the right-hand
+// side b0 in factor()); linear relations between faces (mirror symmetry, constraints across a cut) as rows of a
+// ConstraintSet (constraints.hpp), which the Schur system takes as they are (solve() step 5 must also count them
+// when it looks for components with rows); the connection (cuts) in operators.hpp.
 //
 // Guides (docs/guides.md). `alignment_weight` W >= 0 per face turns the alignment term into
 // |lambda| (u - g)^H M_W (u - g): V = E_m - lambda M_W, and the alignment argument is then the weighted target
