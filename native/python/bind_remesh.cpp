@@ -120,6 +120,7 @@ py::dict extraction_dict(const ExtractionReport& r) {
   d["split_faces"] = r.split_faces;
   d["boundary_holes"] = r.boundary_holes;
   d["dropped_large_faces"] = r.dropped_large_faces;
+  d["open_walks"] = r.open_walks;
   d["removed_conflicting"] = r.removed_conflicting;
   d["split_vertices"] = r.split_vertices;
   return d;
@@ -130,7 +131,8 @@ py::dict extraction_dict(const ExtractionReport& r) {
 void bind_remesh(py::module_& m) {
   m.def("quad_remesh", [](std::shared_ptr<TriangleMesh> mesh, const DoubleArray& directions, double edge_length,
                           bool pure_quads, bool keep_boundary, double sharp_angle, unsigned long long seed,
-                          int iterations, int max_face_size, bool refuse_small_components, const py::object& progress) {
+                          int iterations, int max_face_size, bool refuse_small_components, int relax_iterations,
+                          const py::object& progress) {
     const std::vector<Vec3> dirs = to_points(directions, "field directions");
     QuadRemeshOptions o;
     o.edge_length = edge_length;
@@ -141,6 +143,7 @@ void bind_remesh(py::module_& m) {
     o.iterations = iterations;
     o.max_face_size = max_face_size;
     o.refuse_small_components = refuse_small_components;
+    o.relax_iterations = relax_iterations;
     const RemeshProgress cb = wrap(progress);
     QuadRemeshResult r;
     try {
@@ -169,6 +172,7 @@ void bind_remesh(py::module_& m) {
     d["num_vertices_without_field"] = r.num_vertices_without_field;
     d["lattice_spacing"] = r.lattice_spacing;
     d["extraction"] = extraction_dict(r.extraction);
+    d["cleanup"] = py::dict(py::arg("doublets") = r.cleanup_doublets, py::arg("triangle_pairs") = r.cleanup_triangle_pairs);
     py::dict t;
     t["setup"] = r.seconds_setup;
     t["hierarchy"] = r.seconds_hierarchy;
@@ -178,7 +182,8 @@ void bind_remesh(py::module_& m) {
     return d;
   }, py::arg("mesh"), py::arg("directions"), py::arg("edge_length"), py::arg("pure_quads") = false,
      py::arg("keep_boundary") = true, py::arg("sharp_angle") = 40.0, py::arg("seed") = 0ULL, py::arg("iterations") = 20,
-     py::arg("max_face_size") = 12, py::arg("refuse_small_components") = false, py::arg("progress") = py::none(),
+     py::arg("max_face_size") = 12, py::arg("refuse_small_components") = false,
+     py::arg("relax_iterations") = 2, py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face (see nfield/remesh/quad_remesher.hpp)");
 
   m.def("polygon_manifold_report", [](const DoubleArray& V, const IndexArray& offsets, const IndexArray& indices) {

@@ -261,7 +261,7 @@ def _positive(value: Any, name: str) -> float:
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, keep_boundary: bool = True,
                 sharp_angle: float | None = 40.0, seed: int = 0, iterations: int = 20,
-                strict: bool = False, progress: Callable[[float], Any] | None = None,
+                relax_iterations: int = 2, strict: bool = False, progress: Callable[[float], Any] | None = None,
                 stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
@@ -274,6 +274,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     keep_boundary, sharp_angle : feature curves the output keeps: boundaries, and edges whose dihedral angle
         exceeds ``sharp_angle`` degrees (None or 0: none).
     seed : the random lattice origins; the same seed gives the same mesh.
+    iterations : Gauss-Seidel sweeps of the position field per hierarchy level.
+    relax_iterations : smoothing steps (towards face centroids, then back onto the surface) after extraction.
     strict : True refuses (ValueError) a mesh with a component too small for the edge length; False
         leaves such components out and lists them in ``stats["messages"]``.
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
@@ -301,12 +303,14 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"sharp_angle must be below 180 degrees (0 or None: no sharp edges), got {sharp_angle!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**64:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
+    if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
+        raise ValueError(f"relax_iterations must be an integer in 0..100, got {relax_iterations!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
     r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), h, pure_quads=bool(pure_quads),
                              keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle, seed=int(seed),
-                             iterations=int(iterations), refuse_small_components=bool(strict), progress=progress)
+                             iterations=int(iterations), relax_iterations=int(relax_iterations), refuse_small_components=bool(strict), progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
     faces = _arrays_to_polygons(np.asarray(r["face_offsets"]), np.asarray(r["face_indices"]))
     seconds = time.perf_counter() - t0
@@ -326,6 +330,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "feature_edges": {"boundary": int(r["num_boundary_feature_edges"]), "sharp": int(r["num_sharp_feature_edges"])},
         "hierarchy_levels": int(r["num_levels"]),
         "extraction": dict(r["extraction"]),
+        "cleanup": dict(r["cleanup"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),

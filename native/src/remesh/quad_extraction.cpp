@@ -182,7 +182,7 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
         if (used.count(key(u, w))) break;
       }
       if (!closed) {
-        ++report.dropped_large_faces;
+        ++report.open_walks;
         continue;
       }
       std::vector<int> sorted = walk;

@@ -6,6 +6,7 @@
 
 #include "nfield/errors.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
+#include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
 namespace nfield::remesh {
@@ -33,6 +34,7 @@ void check_options(const QuadRemeshOptions& o) {
   if (!std::isfinite(o.sharp_angle_degrees) || o.sharp_angle_degrees >= 180)
     throw ParameterError("quad remesh: sharp_angle must be below 180 degrees (<= 0 disables sharp edges)");
   if (o.iterations < 1 || o.iterations > 1000) throw ParameterError("quad remesh: iterations must be in 1..1000");
+  if (o.relax_iterations < 0 || o.relax_iterations > 100) throw ParameterError("quad remesh: relax_iterations must be in 0..100");
   if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
 }
 
@@ -95,6 +97,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     for (int& f : surface.source_triangle) f = faces_kept[f];
   }
   result.remeshed_components = kept;
+  refine_long_edges(surface, 0.5 * s);
   directions.resize(surface.triangles.size());
   for (size_t t = 0; t < surface.triangles.size(); ++t) directions[t] = triangle_directions[surface.source_triangle[t]];
   if (mesh.report().nonmanifold_edges.size() || mesh.report().num_orientation_cuts)
@@ -149,6 +152,10 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   const ProjectionTargets targets = make_projection_targets(surface, features);
   result.mesh = extract_quad_mesh(surface, features, levels[0], s, targets, options.max_face_size, result.extraction,
                                   &result.vertex_feature_kind);
+  const CleanupReport cleanup = clean_up_quads(result.mesh, result.vertex_feature_kind);
+  result.cleanup_doublets = cleanup.doublets;
+  result.cleanup_triangle_pairs = cleanup.triangle_pairs + cleanup.triangle_pentagon_pairs;
+  relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   report(0.95);
 
   // 6. Pure quads.
@@ -171,6 +178,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     std::copy(kept_positions.begin(), kept_positions.end(), fine.positions.begin());
     result.mesh = std::move(fine);
     result.vertex_feature_kind = std::move(fkind);
+    relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   }
   result.seconds_extraction = seconds_since(t0);
   if (result.extraction.removed_conflicting)

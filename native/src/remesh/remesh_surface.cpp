@@ -59,8 +59,81 @@ RemeshSurface make_remesh_surface(const TriangleMesh& mesh) {
     s.source_triangle.push_back(f);
   }
   if (s.triangles.empty()) throw InputError("the mesh has no usable (non-degenerate) face to remesh");
+  finalize_surface(s);
+  return s;
+}
 
+void refine_long_edges(RemeshSurface& s, double max_length) {
+  if (!(max_length > 0)) return;
+  const double max2 = max_length * max_length;
+  for (int pass = 0; pass < 32; ++pass) {
+    std::unordered_map<long long, int> midpoint;
+    auto mid = [&](int a, int b) {
+      if (a > b) std::swap(a, b);
+      const long long key = (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
+      auto [it, inserted] = midpoint.emplace(key, static_cast<int>(s.positions.size()));
+      if (inserted) {
+        s.positions.push_back(0.5 * (s.positions[a] + s.positions[b]));
+        s.source_vertex.push_back(-1);
+      }
+      return it->second;
+    };
+    auto is_long = [&](int a, int b) { return (s.positions[a] - s.positions[b]).squaredNorm() > max2; };
+    std::vector<std::array<int, 3>> triangles;
+    std::vector<int> source;
+    bool changed = false;
+    const size_t T = s.triangles.size();
+    for (size_t t = 0; t < T; ++t) {
+      const auto tri = s.triangles[t];
+      bool mark[3];
+      int count = 0;
+      for (int c = 0; c < 3; ++c) count += mark[c] = is_long(tri[c], tri[(c + 1) % 3]);
+      auto emit = [&](int a, int b, int c) {
+        triangles.push_back({a, b, c});
+        source.push_back(s.source_triangle[t]);
+      };
+      if (count == 0) {
+        emit(tri[0], tri[1], tri[2]);
+        continue;
+      }
+      changed = true;
+      // Rotate so that edge (r0, r1) is marked; edges are (r0,r1), (r1,r2), (r2,r0).
+      int k = 0;
+      if (count == 2) {
+        while (mark[k] == 0 || mark[(k + 1) % 3] == 0) ++k;  // k and k+1 marked
+      } else {
+        while (!mark[k]) ++k;
+      }
+      const int a = tri[k], b = tri[(k + 1) % 3], c = tri[(k + 2) % 3];
+      if (count == 1) {
+        const int m = mid(a, b);
+        emit(a, m, c);
+        emit(m, b, c);
+      } else if (count == 2) {
+        const int m0 = mid(a, b), m1 = mid(b, c);
+        emit(m0, b, m1);
+        emit(a, m0, m1);
+        emit(a, m1, c);
+      } else {
+        const int m0 = mid(a, b), m1 = mid(b, c), m2 = mid(c, a);
+        emit(a, m0, m2);
+        emit(m0, b, m1);
+        emit(m2, m1, c);
+        emit(m0, m1, m2);
+      }
+    }
+    s.triangles = std::move(triangles);
+    s.source_triangle = std::move(source);
+    if (!changed) break;
+  }
+  finalize_surface(s);
+}
+
+void finalize_surface(RemeshSurface& s) {
   const int V = s.num_vertices(), T = static_cast<int>(s.triangles.size());
+  s.edges.clear();
+  s.edge_faces.clear();
+  s.num_components = 0;
   s.face_normals.resize(T);
   s.face_areas.resize(T);
   s.vertex_normals.assign(V, Vec3::Zero());
@@ -143,7 +216,6 @@ RemeshSurface make_remesh_surface(const TriangleMesh& mesh) {
   }
   s.component_diagonal.resize(s.num_components);
   for (int c = 0; c < s.num_components; ++c) s.component_diagonal[c] = (hi[c] - lo[c]).norm();
-  return s;
 }
 
 Features detect_features(const RemeshSurface& s, bool keep_boundary, double sharp_angle_degrees,

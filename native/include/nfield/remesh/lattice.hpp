@@ -8,6 +8,7 @@
 // vertices are the lattice points.
 #pragma once
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cmath>
 
 namespace nfield::remesh {

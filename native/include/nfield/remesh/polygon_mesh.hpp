@@ -7,6 +7,7 @@
 // in opposite directions. A vertex is *manifold* when its faces form a single fan (a disc or half-disc).
 #pragma once
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <vector>
 

@@ -35,6 +35,7 @@ struct ExtractionReport {
   int split_faces = 0;          ///< faces that revisited a vertex
   int boundary_holes = 0;       ///< faces dropped as holes of input boundary loops
   int dropped_large_faces = 0;  ///< faces over max_face_size
+  int open_walks = 0;           ///< face walks that did not close within 4 max_face_size steps (left open)
   int removed_conflicting = 0;  ///< faces removed to keep edges manifold and oriented
   int split_vertices = 0;       ///< copies made of pinched vertices
 };

@@ -6,7 +6,8 @@
 //   3. vertex cross field: our face field moved to vertices, n-symmetrically (not optimised);
 //   4. hierarchy (multires_hierarchy.hpp) and 4-PoSy position field (position_field.hpp) with spacing s;
 //   5. extraction (quad_extraction.hpp): clusters, links, faces; manifold and oriented by construction;
-//   6. optional pure quads: one subdivision step (the lattice spacing is then twice the edge length, so the
+//   6. clean-up (quad_cleanup.hpp): doublets and triangle pairs merged, vertices relaxed;
+//   7. optional pure quads: one subdivision step (the lattice spacing is then twice the edge length, so the
 //      output edge length stays the requested one), new vertices projected onto the input.
 //
 // Units: edge_length in mesh units; angles in degrees.
@@ -30,6 +31,7 @@ struct QuadRemeshOptions {
   std::uint64_t seed = 0;            ///< random lattice origins on the coarsest level
   int iterations = 20;               ///< Gauss-Seidel sweeps per hierarchy level
   int max_face_size = 12;            ///< larger extracted faces are dropped
+  int relax_iterations = 2;          ///< relaxation steps after extraction (and after subdivision)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
 };
 
@@ -43,6 +45,7 @@ struct QuadRemeshResult {
   int num_vertices_without_field = 0;
   double lattice_spacing = 0;
   ExtractionReport extraction;
+  int cleanup_doublets = 0, cleanup_triangle_pairs = 0;  ///< quad_cleanup.hpp
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_extraction = 0;
 };
 

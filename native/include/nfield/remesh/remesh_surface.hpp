@@ -50,6 +50,17 @@ struct RemeshSurface {
 /// Builds the cut surface from the active faces of `mesh`. InputError if no face is active.
 RemeshSurface make_remesh_surface(const TriangleMesh& mesh);
 
+/// Splits edges longer than max_length at their midpoints until none is left (each pass splits every
+/// long edge once; a triangle with 1, 2 or 3 long edges becomes 2, 3 or 4 triangles, so neighbours stay
+/// conforming). New vertices have source_vertex -1; new triangles keep their source_triangle (and so the
+/// field direction of the input face they lie in). The position field needs edges shorter than about
+/// half the lattice spacing, otherwise neighbouring lattice points are missed by every edge.
+void refine_long_edges(RemeshSurface& surface, double max_length);
+
+/// Recomputes everything derived from positions and triangles (normals, areas, edges, adjacency,
+/// components).
+void finalize_surface(RemeshSurface& surface);
+
 enum FeatureKind : char { kNoFeature = 0, kCurve = 1, kCorner = 2 };
 
 struct Features {

@@ -6,6 +6,7 @@
 // Query: depth-first, nearer child first, pruned by the squared distance to the boxes.
 #pragma once
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <array>
 #include <limits>
 #include <vector>

@@ -1,0 +1,37 @@
+// Local clean-up of an extracted quad-dominant mesh: fewer triangles and irregular vertices, no folded
+// faces. Every operation keeps the mesh manifold and consistently oriented (it only merges faces across
+// an interior edge or re-splits the union of two faces).
+//
+//  - Doublets: an interior vertex with two edges lies between two faces that share both of its edges;
+//    the vertex is removed and the two faces become one.
+//  - Triangle pairs: two triangles sharing an edge become one quad when that quad is not folded
+//    (scaled Jacobian above `min_jacobian`), best pairs first.
+//  - Triangle + pentagon: their union (a hexagon) is re-split into two quads along the diagonal that
+//    lowers the irregularity sum |valence - 4| of the four vertices involved, if both quads are unfolded.
+//  - Relaxation: each vertex moves towards the mean of the centroids of its faces (weight 1/2), then back
+//    onto the input (projection); corner vertices stay, curve vertices slide along their feature.
+#pragma once
+#include <vector>
+
+#include "nfield/remesh/polygon_mesh.hpp"
+#include "nfield/remesh/quad_extraction.hpp"
+
+namespace nfield::remesh {
+
+struct CleanupReport {
+  int doublets = 0, triangle_pairs = 0, triangle_pentagon_pairs = 0;
+};
+
+/// Topological clean-up (doublets, triangle pairs, triangle + pentagon). `feature_kind` is updated with
+/// the vertex renumbering. Returns what was done.
+CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& feature_kind, double min_jacobian = 0.2);
+
+/// `iterations` relaxation steps (see above), each followed by projection onto the input.
+void relax_vertices(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,
+                    int iterations);
+
+/// Minimum over the corners of the polygon (given by its vertex list) of (e1 x e2) . N / (|e1||e2|), with N
+/// its Newell normal; 1 for a rectangle, <= 0 when folded.
+double polygon_min_jacobian(const std::vector<Vec3>& positions, const std::vector<int>& polygon);
+
+}  // namespace nfield::remesh
