@@ -31,8 +31,8 @@ import common  # noqa: E402
 MESHES = ("fertility.off", "fandisk.obj", "rocker-arm.obj", "stanford-bunny.obj", "armadillo.obj")
 QUICK_MESHES = ("fandisk.obj", "rocker-arm.obj")
 METHODS = ("ours", "ours_pure", "quadriflow", "instant_meshes")
-RENDERS = {"rocker-arm.obj": ("remesh_rocker_arm.png", (1.0, -1.2, 0.9)),
-           "stanford-bunny.obj": ("remesh_bunny.png", (0.2, -1.0, 0.35))}
+RENDERS = {"rocker-arm.obj": ("remesh_rocker_arm.png", (1.0, 0.35, 0.25), False),
+           "stanford-bunny.obj": ("remesh_bunny.png", (0.25, -1.0, 0.3), True)}
 
 # Issue 15 targets (docs/quad_remeshing.md).
 TARGETS = {"quad_fraction_dominant": 0.97, "alignment_mean_deg": 4.0, "alignment_p95_deg": 12.0,
@@ -157,9 +157,10 @@ def measure_mesh(name: str, faces: int, render: bool) -> dict:
     if render and name in RENDERS and all(m in outputs for m in ("ours", "quadriflow", "instant_meshes")):
         from remesh_render import render_panels
 
-        file, view = RENDERS[name]
+        file, view, y_up = RENDERS[name]
         out = common.ROOT / "docs" / "images" / file
-        render_panels([outputs[m] for m in ("ours", "quadriflow", "instant_meshes")], out, view=view, size=(1280, 720))
+        render_panels([outputs[m] for m in ("ours", "quadriflow", "instant_meshes")], out, view=view, size=(1000, 1000),
+                      y_up=y_up)
         row["render"] = str(out.relative_to(common.ROOT))
     return row
 

@@ -28,8 +28,8 @@ def _mesh_object(bpy, name, V, faces):
     return ob
 
 
-def render_panel(V, faces, path, view=(1.0, -1.0, 0.6), size=(1280, 720), wire_ratio=0.0012, up=(0, 0, 1)):
-    """Render one panel to `path` (PNG)."""
+def render_panel(V, faces, path, view=(1.0, -1.0, 0.6), size=(1000, 1000), wire_ratio=0.0012, y_up=False):
+    """Render one panel to `path` (PNG). y_up: the mesh's up axis is +y (turned to +z first)."""
     import bpy
     from mathutils import Vector
 
@@ -46,6 +46,8 @@ def render_panel(V, faces, path, view=(1.0, -1.0, 0.6), size=(1280, 720), wire_r
     shading.show_cavity = False
     scene.display.render_aa = "8"
     V = np.asarray(V, dtype=np.float64)
+    if y_up:
+        V = np.stack([V[:, 0], -V[:, 2], V[:, 1]], axis=1)
     lo, hi = V.min(0), V.max(0)
     centre = 0.5 * (lo + hi)
     diag = float(np.linalg.norm(hi - lo))
@@ -65,7 +67,9 @@ def render_panel(V, faces, path, view=(1.0, -1.0, 0.6), size=(1280, 720), wire_r
     cam = bpy.data.objects.new("cam", cam_data)
     scene.collection.objects.link(cam)
     d = Vector(view).normalized()
-    cam.location = d * diag * 1.55
+    # The bounding sphere (radius diag / 2) fits the 50 mm lens' narrower field of view (39.6 degrees) with a
+    # small margin at 1.45 diag.
+    cam.location = d * diag * 1.45
     cam.rotation_euler = (-d).to_track_quat("-Z", "Y").to_euler()
     scene.camera = cam
     scene.view_settings.view_transform = "Standard"
@@ -102,13 +106,13 @@ def compose(paths, out_path):
     img.save()
 
 
-def render_panels(meshes, out_path, view=(1.0, -1.0, 0.6), size=(1280, 720)):
+def render_panels(meshes, out_path, view=(1.0, -1.0, 0.6), size=(1000, 1000), y_up=False):
     """meshes: list of (V, faces). Renders each panel and composes them left to right into out_path."""
     tmp = tempfile.mkdtemp(prefix="nfield_render_")
     paths = []
     for i, (V, faces) in enumerate(meshes):
         p = os.path.join(tmp, f"panel{i}.png")
-        render_panel(V, faces, p, view=view, size=size)
+        render_panel(V, faces, p, view=view, size=size, y_up=y_up)
         paths.append(p)
     compose(paths, out_path)
     return paths
