@@ -172,7 +172,8 @@ void bind_remesh(py::module_& m) {
     d["num_vertices_without_field"] = r.num_vertices_without_field;
     d["lattice_spacing"] = r.lattice_spacing;
     d["extraction"] = extraction_dict(r.extraction);
-    d["cleanup"] = py::dict(py::arg("doublets") = r.cleanup_doublets, py::arg("triangle_pairs") = r.cleanup_triangle_pairs);
+    d["cleanup"] = py::dict(py::arg("doublets") = r.cleanup_doublets, py::arg("triangle_pairs") = r.cleanup_triangle_pairs,
+                            py::arg("split_large_faces") = r.cleanup_split_faces);
     py::dict t;
     t["setup"] = r.seconds_setup;
     t["hierarchy"] = r.seconds_hierarchy;
@@ -181,7 +182,7 @@ void bind_remesh(py::module_& m) {
     d["seconds"] = t;
     return d;
   }, py::arg("mesh"), py::arg("directions"), py::arg("edge_length"), py::arg("pure_quads") = false,
-     py::arg("keep_boundary") = true, py::arg("sharp_angle") = 40.0, py::arg("seed") = 0ULL, py::arg("iterations") = 20,
+     py::arg("keep_boundary") = true, py::arg("sharp_angle") = 40.0, py::arg("seed") = 0ULL, py::arg("iterations") = 10,
      py::arg("max_face_size") = 12, py::arg("refuse_small_components") = false,
      py::arg("relax_iterations") = 2, py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face (see nfield/remesh/quad_remesher.hpp)");

@@ -260,7 +260,7 @@ def _positive(value: Any, name: str) -> float:
 
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, keep_boundary: bool = True,
-                sharp_angle: float | None = 40.0, seed: int = 0, iterations: int = 20,
+                sharp_angle: float | None = 40.0, seed: int = 0, iterations: int = 10,
                 relax_iterations: int = 2, strict: bool = False, progress: Callable[[float], Any] | None = None,
                 stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.

@@ -182,6 +182,33 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
   return report;
 }
 
+int split_large_faces(PolygonMesh& mesh, std::vector<char>& kind, const ProjectionTargets& targets, int min_size) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> out;
+  int split = 0;
+  for (auto& f : faces) {
+    const int k = static_cast<int>(f.size());
+    if (k < min_size) {
+      out.push_back(f);
+      continue;
+    }
+    Vec3 c = Vec3::Zero();
+    for (int v : f) c += mesh.positions[v];
+    c /= k;
+    const auto hit = targets.surface.closest(c);
+    const int centre = mesh.num_vertices();
+    mesh.positions.push_back(hit.triangle >= 0 ? hit.point : c);
+    kind.push_back(kNoFeature);
+    for (int i = 0; i + 2 <= k; i += 2) {
+      if (i + 2 < k || k % 2 == 0) out.push_back({centre, f[i], f[i + 1], f[(i + 2) % k]});
+    }
+    if (k % 2 == 1) out.push_back({centre, f[k - 1], f[0]});
+    ++split;
+  }
+  rebuild(mesh, out);
+  return split;
+}
+
 void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations) {
   const int V = mesh.num_vertices();
   for (int it = 0; it < iterations; ++it) {

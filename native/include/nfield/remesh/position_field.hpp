@@ -27,7 +27,7 @@ using Progress = std::function<bool(double)>;
 
 struct PositionFieldOptions {
   double scale = 1.0;           ///< lattice spacing s (mesh units)
-  int iterations = 20;          ///< Gauss-Seidel sweeps per level
+  int iterations = 10;          ///< Gauss-Seidel sweeps per level
   std::uint64_t seed = 0;
 };
 

@@ -8,6 +8,9 @@
 //    (scaled Jacobian above `min_jacobian`), best pairs first.
 //  - Triangle + pentagon: their union (a hexagon) is re-split into two quads along the diagonal that
 //    lowers the irregularity sum |valence - 4| of the four vertices involved, if both quads are unfolded.
+//  - Large faces (6 sides or more, left where the extraction found no lattice point inside): a vertex at
+//    the centroid, projected onto the input, is joined to every other corner, giving k/2 quads (and one
+//    triangle for odd k). Flat large polygons deviate from a curved input by a good part of an edge length.
 //  - Relaxation: each vertex moves towards the mean of the centroids of its faces (weight 1/2), then back
 //    onto the input (projection); corner vertices stay, curve vertices slide along their feature.
 #pragma once
@@ -25,6 +28,11 @@ struct CleanupReport {
 /// Topological clean-up (doublets, triangle pairs, triangle + pentagon). `feature_kind` is updated with
 /// the vertex renumbering. Returns what was done.
 CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& feature_kind, double min_jacobian = 0.2);
+
+/// Splits faces with at least `min_size` sides (see above); returns the number split. feature_kind grows
+/// with the new vertices (kNoFeature).
+int split_large_faces(PolygonMesh& mesh, std::vector<char>& feature_kind, const ProjectionTargets& targets,
+                      int min_size = 6);
 
 /// `iterations` relaxation steps (see above), each followed by projection onto the input.
 void relax_vertices(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,

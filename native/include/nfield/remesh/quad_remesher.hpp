@@ -29,7 +29,7 @@ struct QuadRemeshOptions {
   bool keep_boundary = true;         ///< boundary edges are feature curves
   double sharp_angle_degrees = 40;   ///< edges with a larger dihedral angle are feature curves (<= 0: none)
   std::uint64_t seed = 0;            ///< random lattice origins on the coarsest level
-  int iterations = 20;               ///< Gauss-Seidel sweeps per hierarchy level
+  int iterations = 10;               ///< Gauss-Seidel sweeps per hierarchy level
   int max_face_size = 12;            ///< larger extracted faces are dropped
   int relax_iterations = 2;          ///< relaxation steps after extraction (and after subdivision)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
@@ -45,7 +45,7 @@ struct QuadRemeshResult {
   int num_vertices_without_field = 0;
   double lattice_spacing = 0;
   ExtractionReport extraction;
-  int cleanup_doublets = 0, cleanup_triangle_pairs = 0;  ///< quad_cleanup.hpp
+  int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_extraction = 0;
 };
 
