@@ -156,7 +156,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
             before += irr(x, 0);
             after += irr(x, dv);
           }
-          if (after >= before) continue;
+          if (after > before) continue;
           const double q = std::min(polygon_min_jacobian(mesh.positions, qa), polygon_min_jacobian(mesh.positions, qb));
           if (q > min_jacobian) cands.push_back({q, f, g, qa, qb, before - after});
         }

@@ -6,8 +6,8 @@
 //    the vertex is removed and the two faces become one.
 //  - Triangle pairs: two triangles sharing an edge become one quad when that quad is not folded
 //    (scaled Jacobian above `min_jacobian`), best pairs first.
-//  - Triangle + pentagon: their union (a hexagon) is re-split into two quads along the diagonal that
-//    lowers the irregularity sum |valence - 4| of the four vertices involved, if both quads are unfolded.
+//  - Triangle + pentagon: their union (a hexagon) is re-split into two quads along a diagonal that does not
+//    raise the irregularity sum |valence - 4| of the four vertices involved, if both quads are unfolded.
 //  - Large faces (6 sides or more, left where the extraction found no lattice point inside): a vertex at
 //    the centroid, projected onto the input, is joined to every other corner, giving k/2 quads (and one
 //    triangle for odd k). Flat large polygons deviate from a curved input by a good part of an edge length.
