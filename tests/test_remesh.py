@@ -221,6 +221,7 @@ def fandisk():
     ({"target_faces": 100, "iterations": 0}, "iterations must be an integer in 1..1000"),
     ({"target_faces": 100, "n": 3}, "n = 3 given, but the field has n = 4"),
     ({"edge_length": 1e6}, "every component of the mesh is too small"),
+    ({"target_faces": 10**9}, "would make about 1e.09 faces; at most 2e.06"),
 ])
 def test_bad_parameters_are_named(fandisk, kwargs, message):
     mesh, field = fandisk

@@ -26,6 +26,9 @@ std::string format(double x) {
 
 /// A component can hold a quad mesh of spacing s when its area is at least a few quads and it is not
 /// thinner than one quad: area >= 3 s^2 and bounding-box diagonal >= 2 s.
+/// Largest lattice (about the output face count) accepted: 2 million faces need about 2 GB on the way.
+constexpr double kMaxLatticePoints = 2e6;
+
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
 
 void check_options(const QuadRemeshOptions& o) {
@@ -97,6 +100,15 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     for (int& f : surface.source_triangle) f = faces_kept[f];
   }
   result.remeshed_components = kept;
+  // Refuse targets whose lattice would be too fine to hold in memory: the lattice has about area / s^2
+  // points, and the surface is refined to edges below s / 2 (about 8 area / s^2 vertices).
+  double kept_area = 0;
+  for (double a : surface.face_areas) kept_area += a;
+  const double lattice_points = kept_area / (s * s);
+  if (lattice_points > kMaxLatticePoints)
+    throw ParameterError("quad remesh: the target edge length " + format(options.edge_length) + " would make about " +
+                         format(lattice_points) + " faces; at most " + format(kMaxLatticePoints) +
+                         " are supported (raise the edge length or lower the face count)");
   refine_long_edges(surface, 0.5 * s);
   directions.resize(surface.triangles.size());
   for (size_t t = 0; t < surface.triangles.size(); ++t) directions[t] = triangle_directions[surface.source_triangle[t]];

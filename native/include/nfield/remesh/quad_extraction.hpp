@@ -53,8 +53,8 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& surface, const Features& feat
                               double scale, const ProjectionTargets& targets, int max_face_size,
                               ExtractionReport& report, std::vector<char>* feature_kind_out = nullptr);
 
-/// Moves each vertex onto the input (corner: nearest corner point among `corners`, curve: nearest feature
-/// edge, else nearest surface point).
+/// Moves each vertex onto the input: feature vertices (corner or curve) onto the nearest feature edge,
+/// the others onto the nearest surface point. (Corners are snapped to their corner by the caller.)
 void project_vertices(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets);
 
 }  // namespace nfield::remesh
