@@ -173,6 +173,7 @@ void bind_remesh(py::module_& m) {
     d["lattice_spacing"] = r.lattice_spacing;
     d["extraction"] = extraction_dict(r.extraction);
     d["cleanup"] = py::dict(py::arg("doublets") = r.cleanup_doublets, py::arg("triangle_pairs") = r.cleanup_triangle_pairs,
+                            py::arg("triangle_strips") = r.cleanup_triangle_strips,
                             py::arg("split_large_faces") = r.cleanup_split_faces);
     py::dict t;
     t["setup"] = r.seconds_setup;

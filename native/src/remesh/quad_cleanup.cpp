@@ -54,6 +54,100 @@ void rebuild(PolygonMesh& m, const std::vector<std::vector<int>>& faces) {
 
 }  // namespace
 
+int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int max_quads) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  auto dir = directed_faces(faces);
+  std::vector<int> valence = vertex_valences(mesh).valence;
+  auto face_across = [&](int u, int v) {  // the face containing v -> u (across the edge u -> v)
+    auto it = dir.find((static_cast<long long>(v) << 32) | static_cast<unsigned int>(u));
+    return it == dir.end() ? -1 : it->second;
+  };
+  struct Candidate {
+    int gain;
+    double quality;
+    std::vector<int> strip;                   // faces: T1, quads..., T2
+    std::vector<std::vector<int>> replacement;
+    int v0, v1;                               // the two vertices losing an edge
+  };
+  std::vector<Candidate> cands;
+  const int F = static_cast<int>(faces.size());
+  for (int t1 = 0; t1 < F; ++t1) {
+    if (faces[t1].size() != 3) continue;
+    for (int c = 0; c < 3; ++c) {
+      const int a = faces[t1][c];
+      std::vector<int> A = {faces[t1][(c + 1) % 3]}, B = {faces[t1][(c + 2) % 3]};  // T1 = (a, A0, B0)
+      std::vector<int> strip = {t1};
+      int b = -1;
+      for (int step = 0; step <= max_quads; ++step) {
+        const int g = face_across(A.back(), B.back());  // contains B -> A
+        if (g < 0 || std::find(strip.begin(), strip.end(), g) != strip.end()) break;
+        const auto& fg = faces[g];
+        const int kg = static_cast<int>(fg.size());
+        const int ib = static_cast<int>(std::find(fg.begin(), fg.end(), B.back()) - fg.begin());
+        if (ib == kg || fg[(ib + 1) % kg] != A.back()) break;
+        if (kg == 3) {
+          if (step == 0 || g < t1) break;  // adjacent triangles are merged elsewhere; each strip once
+          b = fg[(ib + 2) % 3];
+          strip.push_back(g);
+          break;
+        }
+        if (kg != 4) break;
+        // g = (B_i, A_i, A_{i+1}, B_{i+1})
+        A.push_back(fg[(ib + 2) % 4]);
+        B.push_back(fg[(ib + 3) % 4]);
+        strip.push_back(g);
+      }
+      if (b < 0) continue;
+      const int k = static_cast<int>(A.size()) - 1;
+      std::vector<int> all = {a, b};
+      all.insert(all.end(), A.begin(), A.end());
+      all.insert(all.end(), B.begin(), B.end());
+      std::sort(all.begin(), all.end());
+      if (std::adjacent_find(all.begin(), all.end()) != all.end()) continue;
+      for (int variant = 0; variant < 2; ++variant) {
+        std::vector<std::vector<int>> rep;
+        int v0, v1;
+        if (variant == 0) {  // rungs A_i - B_{i+1}
+          rep.push_back({a, A[0], B[1], B[0]});
+          for (int i = 1; i < k; ++i) rep.push_back({A[i - 1], A[i], B[i + 1], B[i]});
+          rep.push_back({A[k - 1], A[k], b, B[k]});
+          v0 = A[k];
+          v1 = B[0];
+        } else {  // rungs B_i - A_{i+1}
+          rep.push_back({a, A[0], A[1], B[0]});
+          for (int i = 1; i < k; ++i) rep.push_back({B[i - 1], A[i], A[i + 1], B[i]});
+          rep.push_back({B[k - 1], A[k], b, B[k]});
+          v0 = A[0];
+          v1 = B[k];
+        }
+        const int gain = std::abs(valence[v0] - 4) + std::abs(valence[v1] - 4) - std::abs(valence[v0] - 5) -
+                         std::abs(valence[v1] - 5);
+        if (gain <= 0) continue;
+        double q = 1;
+        for (const auto& f : rep) q = std::min(q, polygon_min_jacobian(mesh.positions, f));
+        if (q > min_jacobian) cands.push_back({gain, q, strip, rep, v0, v1});
+      }
+    }
+  }
+  std::sort(cands.begin(), cands.end(), [](const Candidate& x, const Candidate& y) {
+    return x.gain != y.gain ? x.gain > y.gain : (x.strip.size() != y.strip.size() ? x.strip.size() < y.strip.size()
+                                                                                   : x.quality > y.quality);
+  });
+  std::vector<char> used(F, 0), touched(mesh.num_vertices(), 0);
+  int done = 0;
+  for (auto& c : cands) {
+    bool free = !touched[c.v0] && !touched[c.v1];
+    for (int f : c.strip) free = free && !used[f];
+    if (!free) continue;
+    for (int f : c.strip) used[f] = 1;
+    touched[c.v0] = touched[c.v1] = 1;  // their valences change: later candidates computed them before
+    for (size_t i = 0; i < c.strip.size(); ++i) faces[c.strip[i]] = i < c.replacement.size() ? c.replacement[i] : std::vector<int>{};
+    ++done;
+  }
+  rebuild(mesh, faces);
+  return done;
+}
+
 double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly) {
   const int k = static_cast<int>(poly.size());
   Vec3 n = Vec3::Zero();
@@ -175,6 +269,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
     }
   }
   rebuild(mesh, faces);
+  report.triangle_strips = pair_triangles_through_strips(mesh, min_jacobian);
   const std::vector<int> old = compact_vertices(mesh);
   std::vector<char> k2(old.size());
   for (size_t i = 0; i < old.size(); ++i) k2[i] = kind[old[i]];

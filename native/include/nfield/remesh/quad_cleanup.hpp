@@ -8,6 +8,12 @@
 //    (scaled Jacobian above `min_jacobian`), best pairs first.
 //  - Triangle + pentagon: their union (a hexagon) is re-split into two quads along a diagonal that does not
 //    raise the irregularity sum |valence - 4| of the four vertices involved, if both quads are unfolded.
+//  - Triangle strips: two triangles joined by a strip of k <= 8 quads (entering each quad by one edge and
+//    leaving by the opposite one) form a polygon of 2k + 4 sides, re-split into k + 1 quads with the rungs
+//    shifted by one. Two vertices at opposite ends lose an edge; done when that lowers their irregularity
+//    (best first) and no quad folds (only then: the shifted rungs cut across the field, so every strip
+//    costs some alignment). This glides a row end (triangle + valence-5 vertex)
+//    along the strip onto an opposite one, and both disappear.
 //  - Large faces (6 sides or more, left where the extraction found no lattice point inside): a vertex at
 //    the centroid, projected onto the input, is joined to every other corner, giving k/2 quads (and one
 //    triangle for odd k). Flat large polygons deviate from a curved input by a good part of an edge length.
@@ -22,12 +28,15 @@
 namespace nfield::remesh {
 
 struct CleanupReport {
-  int doublets = 0, triangle_pairs = 0, triangle_pentagon_pairs = 0;
+  int doublets = 0, triangle_pairs = 0, triangle_pentagon_pairs = 0, triangle_strips = 0;
 };
 
 /// Topological clean-up (doublets, triangle pairs, triangle + pentagon). `feature_kind` is updated with
 /// the vertex renumbering. Returns what was done.
 CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& feature_kind, double min_jacobian = 0.2);
+
+/// The triangle-strip step alone (see above); returns the number of strips re-split.
+int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian = 0.2, int max_quads = 8);
 
 /// Splits faces with at least `min_size` sides (see above); returns the number split. feature_kind grows
 /// with the new vertices (kNoFeature).

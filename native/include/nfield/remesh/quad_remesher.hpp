@@ -45,7 +45,7 @@ struct QuadRemeshResult {
   int num_vertices_without_field = 0;
   double lattice_spacing = 0;
   ExtractionReport extraction;
-  int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
+  int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_extraction = 0;
 };
 
