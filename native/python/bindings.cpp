@@ -28,6 +28,8 @@
 namespace py = pybind11;
 using namespace nfield;
 
+void bind_remesh(py::module_& m);  // native/python/bind_remesh.cpp
+
 namespace {
 
 using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
@@ -715,4 +717,6 @@ PYBIND11_MODULE(_native, m) {
         "Evenly spaced streamlines of a per-face field (see streamlines.hpp): "
         "(points list of (k,3), faces list of (k,), families, lengths, stats dict)");
   // ---- END streamlines ----
+
+  bind_remesh(m);
 }
