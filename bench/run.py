@@ -16,6 +16,8 @@ Parts (each also runs alone; every mesh in its own subprocess):
                                    regions), a target change, and the global refactorization they defer
   fig8      bench/fig8.py          reduced vs exact on the bunny for k = 50 ... 2000 (one basis of k = 2000,
                                    cached in bench/results/cache/), table and PNG
+  remesh    bench/remesh.py        quad remeshing beside QuadriFlow (bpy) and Instant Meshes (pyinstantmeshes,
+                                   optional: reported as failed when missing), ~5,000 quads on five meshes
 Writes bench/results/table1.{json,md} (the combined table, with --quick: table1_quick.*) besides each part's
 own files, prints the combined JSON and then the readable table.
 
@@ -24,7 +26,7 @@ minutes on a busy one; the numbers mean little). Default: the full run, about 18
 machine at load 6-8 once the Fig. 8 basis (bunny, k = 2000) is cached, plus ~12 min the first time for that
 basis; --x4-basis adds ~15 min and needs ~9.5 GB of memory (docs/benchmarks.md).
 
-Usage: python bench/run.py [--quick] [--parts exact,oneshot,spectral,live,guides,fig8] [--x4-basis]
+Usage: python bench/run.py [--quick] [--parts exact,oneshot,spectral,live,guides,fig8,remesh] [--x4-basis]
 """
 from __future__ import annotations
 
@@ -43,10 +45,11 @@ import exact_solver  # noqa: E402
 import fig8  # noqa: E402
 import guides  # noqa: E402
 import one_shot  # noqa: E402
+import remesh  # noqa: E402
 import spectral  # noqa: E402
 from paper import FIG8_THRESHOLD, TABLE1, paper_row  # noqa: E402
 
-PARTS = ("exact", "oneshot", "spectral", "live", "guides", "fig8")
+PARTS = ("exact", "oneshot", "spectral", "live", "guides", "fig8", "remesh")
 
 
 def run_live(quick: bool) -> dict:
@@ -227,6 +230,9 @@ def markdown(doc: dict) -> str:
                f"below {100 * FIG8_THRESHOLD:.0f} %.", "", fig8.table(r), "",
                f"![Fig. 8]({Path(r['png']).name})" if r.get("png") else f"(no plot: {r.get('png_note')})", "",
                "Details: fig8.md.", ""]
+    if doc.get("remesh"):
+        md += ["## Quad remeshing (ours vs QuadriFlow vs Instant Meshes)", "", doc["remesh"]["markdown"],
+               "Details: remesh.md, docs/quad_remeshing.md.", ""]
     md += ["## The paper's Table 1 (their machine)", "",
            "| mesh | faces | bases setup | reduced setup & solve | factorization | unreduced solve |",
            "|---|---|---|---|---|---|"]
@@ -272,6 +278,9 @@ def main() -> int:
     if "fig8" in parts:
         doc["fig8"] = (fig8.run(fig8.QUICK_KS, 4, 10, fig8.QUICK_MESH, stem="fig8_quick") if args.quick
                        else fig8.run(fig8.KS, 20, 10, fig8.MESH))
+    if "remesh" in parts:
+        meshes = remesh.QUICK_MESHES if args.quick else remesh.MESHES
+        doc["remesh"] = remesh.run(meshes, 5000, False, "remesh_quick" if args.quick else "remesh")
     doc["table1"] = combined_rows(doc.get("exact"), doc.get("spectral"), doc.get("oneshot"))
     doc["targets"] = ((doc.get("spectral") or {}).get("targets", []) + (doc.get("oneshot") or {}).get("targets", [])
                       + (doc.get("live") or {}).get("targets", []) + (doc.get("guides") or {}).get("targets", []))
@@ -285,7 +294,10 @@ def main() -> int:
     summary = {k: doc[k] for k in ("meta", "table1", "targets")}
     if doc.get("fig8"):
         summary["fig8"] = [{k: v for k, v in r.items() if not k.endswith("_all")} for r in doc["fig8"]["result"]["rows"]]
-    common.write_results(stem, {**summary, "parts": {k: doc[k] for k in PARTS if k in doc}}, md)
+    parts_doc = {k: doc[k] for k in PARTS if k in doc}
+    if "remesh" in parts_doc:
+        parts_doc["remesh"] = parts_doc["remesh"]["doc"]
+    common.write_results(stem, {**summary, "parts": parts_doc}, md)
     print(json.dumps(summary, indent=2))
     print(md)
     print(f"written: {common.RESULTS / (stem + '.md')} and .json", file=sys.stderr)

@@ -29,6 +29,8 @@
 namespace py = pybind11;
 using namespace nfield;
 
+void bind_remesh(py::module_& m);  // native/python/bind_remesh.cpp
+
 namespace {
 
 using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
@@ -760,4 +762,5 @@ PYBIND11_MODULE(_native, m) {
   // ---- END streamlines ----
 
   bind_guides(m);
+  bind_remesh(m);
 }

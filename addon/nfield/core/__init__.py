@@ -20,6 +20,7 @@ from .session import DesignSession, Layer
 from .spectral import DEFAULT_K, BasisInfo, default_cache_dir, load_or_compute_basis, low_pass
 from .solve import ALIGN_CHOICES, WEIGHT_CHOICES, FieldResult, eigenvalues, smoothest_field, solve
 from .streamlines import Strokes, trace_streamlines
+from .remesh import QuadMesh, field_directions, field_singularities, quad_mesh_stats, quad_remesh, write_polygon_obj
 
 
 def __getattr__(name):
@@ -53,4 +54,10 @@ __all__ = [
     "NativeModuleError",
     "Strokes",
     "trace_streamlines",
+    "QuadMesh",
+    "quad_remesh",
+    "quad_mesh_stats",
+    "field_directions",
+    "field_singularities",
+    "write_polygon_obj",
 ]

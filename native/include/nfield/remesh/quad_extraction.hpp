@@ -1,0 +1,60 @@
+// Extraction of a quad-dominant mesh from an optimised position field (Jakob et al. 2015, section 6, in
+// our own simplified form).
+//
+//  1. Every surface edge ij compares the lattice points of i and j (closest_lattice_pair). Their integer
+//     offset D = index_i - index_j says how p_j sits relative to p_i in lattice steps: D = 0, same output
+//     vertex; |D|_1 = 1, neighbouring output vertices; anything else, no relation (diagonals, jumps).
+//  2. Vertices joined by D = 0 edges form clusters (union-find): the output vertices, at the area-weighted
+//     mean of their members' lattice points. Clusters joined by a D = 1 edge are linked; links shorter
+//     than a quarter of the spacing merge their clusters (two copies of one lattice point).
+//  3. Vertices with fewer than two links are removed (repeatedly). Around each vertex the links are sorted
+//     by angle in its tangent plane; walking "next link clockwise" traces every face of the embedded
+//     graph, each directed link once, so the result is an oriented polygon mesh.
+//  4. A face that revisits a vertex is split into simple loops; loops of fewer than 3 vertices are
+//     dropped. A face whose vertices all lie on the input boundary and that turns the wrong way (or is
+//     large) is the hole of a boundary loop and is dropped; faces over `max_face_size` are dropped too.
+//  5. Faces that would make an edge non-manifold or inconsistently oriented are removed, pinched
+//     vertices are split: the result is manifold and oriented by construction.
+//  6. Vertices are projected onto the input: corner clusters onto their corner, curve clusters onto the
+//     nearest feature edge, all others onto the nearest surface point.
+#pragma once
+#include <vector>
+
+#include "nfield/remesh/multires_hierarchy.hpp"
+#include "nfield/remesh/polygon_mesh.hpp"
+#include "nfield/remesh/remesh_surface.hpp"
+#include "nfield/remesh/triangle_tree.hpp"
+
+namespace nfield::remesh {
+
+struct ExtractionReport {
+  int clusters = 0;
+  int links = 0;
+  int merged_short_links = 0;
+  int removed_dangling = 0;
+  int split_faces = 0;          ///< faces that revisited a vertex
+  int boundary_holes = 0;       ///< faces dropped as holes of input boundary loops
+  int dropped_large_faces = 0;  ///< faces over max_face_size
+  int open_walks = 0;           ///< face walks that did not close within 4 max_face_size steps (left open)
+  int removed_conflicting = 0;  ///< faces removed to keep edges manifold and oriented
+  int split_vertices = 0;       ///< copies made of pinched vertices
+};
+
+/// The surface's projection targets: the whole surface and its feature edges.
+struct ProjectionTargets {
+  TriangleTree surface;
+  TriangleTree feature_edges;  ///< each feature edge as a degenerate triangle (a, b, b)
+};
+ProjectionTargets make_projection_targets(const RemeshSurface& surface, const Features& features);
+
+/// `level0` is levels[0] after optimise_positions (one entry per surface vertex). `feature_kind_out`
+/// (optional) receives the FeatureKind of each output vertex.
+PolygonMesh extract_quad_mesh(const RemeshSurface& surface, const Features& features, const HierarchyLevel& level0,
+                              double scale, const ProjectionTargets& targets, int max_face_size,
+                              ExtractionReport& report, std::vector<char>* feature_kind_out = nullptr);
+
+/// Moves each vertex onto the input: feature vertices (corner or curve) onto the nearest feature edge,
+/// the others onto the nearest surface point. (Corners are snapped to their corner by the caller.)
+void project_vertices(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets);
+
+}  // namespace nfield::remesh

@@ -1,0 +1,58 @@
+// Quad remeshing driven by a designed cross field: the pipeline of named steps.
+//
+//   1. cut surface (remesh_surface.hpp): active faces, cut at non-manifold and orientation cuts; components
+//      smaller than the target are left out (listed) or refused;
+//   2. features: boundary and sharp edges (dihedral angle above a threshold);
+//   3. vertex cross field: our face field moved to vertices, n-symmetrically (not optimised);
+//   4. hierarchy (multires_hierarchy.hpp) and 4-PoSy position field (position_field.hpp) with spacing s;
+//   5. extraction (quad_extraction.hpp): clusters, links, faces; manifold and oriented by construction;
+//   6. clean-up (quad_cleanup.hpp): doublets and triangle pairs merged, vertices relaxed;
+//   7. optional pure quads: one subdivision step (the lattice spacing is then twice the edge length, so the
+//      output edge length stays the requested one), new vertices projected onto the input.
+//
+// Units: edge_length in mesh units; angles in degrees.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "nfield/mesh.hpp"
+#include "nfield/remesh/polygon_mesh.hpp"
+#include "nfield/remesh/position_field.hpp"
+#include "nfield/remesh/quad_extraction.hpp"
+
+namespace nfield::remesh {
+
+struct QuadRemeshOptions {
+  double edge_length = 0;            ///< target edge length of the output (mesh units), > 0
+  bool pure_quads = false;           ///< one subdivision step: all faces become quads
+  bool keep_boundary = true;         ///< boundary edges are feature curves
+  double sharp_angle_degrees = 40;   ///< edges with a larger dihedral angle are feature curves (<= 0: none)
+  std::uint64_t seed = 0;            ///< random lattice origins on the coarsest level
+  int iterations = 10;               ///< Gauss-Seidel sweeps per hierarchy level
+  int max_face_size = 12;            ///< larger extracted faces are dropped
+  int relax_iterations = 2;          ///< relaxation steps after extraction (and after subdivision)
+  bool refuse_small_components = false;  ///< true: a component too small for the target is an error
+};
+
+struct QuadRemeshResult {
+  PolygonMesh mesh;
+  std::vector<char> vertex_feature_kind;  ///< FeatureKind of each output vertex
+  std::vector<std::string> messages;      ///< what was skipped or repaired, one line each
+  int num_components = 0, remeshed_components = 0;
+  int num_levels = 0;
+  int num_boundary_feature_edges = 0, num_sharp_feature_edges = 0;
+  int num_vertices_without_field = 0;
+  double lattice_spacing = 0;
+  ExtractionReport extraction;
+  int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
+  double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_extraction = 0;
+};
+
+/// `triangle_directions`: one 3D tangent direction of the cross field per face of `mesh` (any of the four;
+/// zero rows: no field there). ParameterError for a bad option, InputError when nothing can be remeshed
+/// (every component smaller than the target, or one of them with refuse_small_components), Cancelled.
+QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& triangle_directions,
+                             const QuadRemeshOptions& options, const Progress& progress = {});
+
+}  // namespace nfield::remesh

@@ -1,0 +1,268 @@
+#include "nfield/remesh/polygon_mesh.hpp"
+
+#include <algorithm>
+#include <numeric>
+#include <string>
+#include <unordered_map>
+
+#include "nfield/errors.hpp"
+
+namespace nfield::remesh {
+
+namespace {
+
+inline long long edge_key(int a, int b) {
+  if (a > b) std::swap(a, b);
+  return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
+}
+
+int find(std::vector<int>& parent, int x) {
+  while (parent[x] != x) x = parent[x] = parent[parent[x]];
+  return x;
+}
+
+}  // namespace
+
+void PolygonMesh::validate() const {
+  if (offsets.empty() || offsets.front() != 0 || offsets.back() != static_cast<int>(indices.size()))
+    throw InputError("polygon mesh: face offsets do not match the index list");
+  for (int f = 0; f < num_faces(); ++f) {
+    if (face_size(f) < 3)
+      throw InputError("polygon mesh: face " + std::to_string(f) + " has " + std::to_string(face_size(f)) +
+                       " vertices (at least 3 needed)");
+    for (int k = 0; k < face_size(f); ++k)
+      if (face(f)[k] < 0 || face(f)[k] >= num_vertices())
+        throw InputError("polygon mesh: face " + std::to_string(f) + " has vertex index " +
+                         std::to_string(face(f)[k]) + ", out of range [0, " + std::to_string(num_vertices()) + ")");
+  }
+  for (const auto& p : positions)
+    if (!p.allFinite()) throw InputError("polygon mesh: a vertex position is not finite");
+}
+
+std::vector<std::array<int, 2>> unique_edges(const PolygonMesh& mesh) {
+  std::unordered_map<long long, int> seen;
+  std::vector<std::array<int, 2>> edges;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    for (int i = 0; i < k; ++i) {
+      const int a = v[i], b = v[(i + 1) % k];
+      if (a == b) continue;
+      if (seen.emplace(edge_key(a, b), static_cast<int>(edges.size())).second)
+        edges.push_back({std::min(a, b), std::max(a, b)});
+    }
+  }
+  return edges;
+}
+
+ManifoldReport check_manifold(const PolygonMesh& mesh) {
+  ManifoldReport r;
+  // Edge uses: count and directed count (a < b counted +1 for a->b, -1 for b->a).
+  std::unordered_map<long long, std::array<int, 3>> uses;  // total, forward, backward
+  std::vector<std::vector<std::array<int, 2>>> corners(mesh.num_vertices());  // (prev, next) per corner
+  std::vector<char> used(mesh.num_vertices(), 0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    std::vector<int> sorted(v, v + k);
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) ++r.faces_with_repeated_vertex;
+    for (int i = 0; i < k; ++i) {
+      const int a = v[i], b = v[(i + 1) % k];
+      used[a] = 1;
+      auto& u = uses[edge_key(a, b)];
+      ++u[0];
+      ++u[a < b ? 1 : 2];
+      corners[a].push_back({v[(i + k - 1) % k], b});
+    }
+  }
+  for (const auto& [key, u] : uses) {
+    (void)key;
+    if (u[0] > 2) ++r.nonmanifold_edges;
+    if (u[1] > 1 || u[2] > 1) ++r.inconsistent_edges;
+    if (u[0] == 1) ++r.boundary_edges;
+  }
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (!used[v]) {
+      ++r.isolated_vertices;
+      continue;
+    }
+    // The corners around v form one fan iff linking corner (p, n) to the corner whose prev is n gives a
+    // single chain. Union corners sharing a neighbour; count components and check each neighbour is
+    // shared by at most two corners.
+    const auto& c = corners[v];
+    const int m = static_cast<int>(c.size());
+    std::vector<int> parent(m);
+    std::iota(parent.begin(), parent.end(), 0);
+    std::unordered_map<int, std::vector<int>> by_neighbour;
+    for (int i = 0; i < m; ++i) {
+      by_neighbour[c[i][0]].push_back(i);
+      by_neighbour[c[i][1]].push_back(i);
+    }
+    bool bad = false;
+    for (const auto& [nb, list] : by_neighbour) {
+      (void)nb;
+      if (list.size() > 2) bad = true;
+      for (size_t j = 1; j < list.size(); ++j) parent[find(parent, static_cast<int>(list[j]))] = find(parent, list[0]);
+    }
+    int components = 0;
+    for (int i = 0; i < m; ++i) components += find(parent, i) == i;
+    if (bad || components > 1) ++r.nonmanifold_vertices;
+  }
+  return r;
+}
+
+int remove_conflicting_faces(PolygonMesh& mesh) {
+  std::unordered_map<long long, std::array<int, 3>> uses;
+  PolygonMesh out;
+  out.positions = mesh.positions;
+  int removed = 0;
+  std::vector<int> face;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    face.assign(v, v + k);
+    std::vector<int> sorted = face;
+    std::sort(sorted.begin(), sorted.end());
+    bool ok = k >= 3 && std::adjacent_find(sorted.begin(), sorted.end()) == sorted.end();
+    for (int i = 0; ok && i < k; ++i) {
+      const int a = v[i], b = v[(i + 1) % k];
+      auto it = uses.find(edge_key(a, b));
+      if (it == uses.end()) continue;
+      const auto& u = it->second;
+      if (u[0] >= 2 || u[a < b ? 1 : 2] >= 1) ok = false;
+    }
+    if (!ok) {
+      ++removed;
+      continue;
+    }
+    for (int i = 0; i < k; ++i) {
+      const int a = v[i], b = v[(i + 1) % k];
+      auto& u = uses[edge_key(a, b)];
+      ++u[0];
+      ++u[a < b ? 1 : 2];
+    }
+    out.add_face(face);
+  }
+  mesh = std::move(out);
+  return removed;
+}
+
+int split_pinched_vertices(PolygonMesh& mesh, std::vector<int>* copied_from) {
+  // Corners per vertex: (face, position in face, prev, next).
+  struct Corner {
+    int face, slot, prev, next;
+  };
+  std::vector<std::vector<Corner>> corners(mesh.num_vertices());
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    for (int i = 0; i < k; ++i) corners[v[i]].push_back({f, i, v[(i + k - 1) % k], v[(i + 1) % k]});
+  }
+  if (copied_from) {
+    copied_from->resize(mesh.num_vertices());
+    std::iota(copied_from->begin(), copied_from->end(), 0);
+  }
+  int added = 0;
+  const int V = mesh.num_vertices();
+  for (int v = 0; v < V; ++v) {
+    const auto& c = corners[v];
+    const int m = static_cast<int>(c.size());
+    if (m <= 1) continue;
+    std::vector<int> parent(m);
+    std::iota(parent.begin(), parent.end(), 0);
+    std::unordered_map<int, int> first_with;
+    for (int i = 0; i < m; ++i)
+      for (int nb : {c[i].prev, c[i].next}) {
+        auto [it, inserted] = first_with.emplace(nb, i);
+        if (!inserted) parent[find(parent, i)] = find(parent, it->second);
+      }
+    std::unordered_map<int, int> copy_of_root;
+    for (int i = 0; i < m; ++i) {
+      const int root = find(parent, i);
+      if (root == find(parent, 0)) continue;
+      auto it = copy_of_root.find(root);
+      int nv;
+      if (it == copy_of_root.end()) {
+        nv = mesh.num_vertices();
+        mesh.positions.push_back(mesh.positions[v]);
+        if (copied_from) copied_from->push_back(v);
+        copy_of_root.emplace(root, nv);
+        ++added;
+      } else {
+        nv = it->second;
+      }
+      mesh.indices[mesh.offsets[c[i].face] + c[i].slot] = nv;
+    }
+  }
+  return added;
+}
+
+std::vector<int> compact_vertices(PolygonMesh& mesh) {
+  std::vector<int> new_index(mesh.num_vertices(), -1), old_index;
+  for (int& i : mesh.indices) {
+    if (new_index[i] < 0) {
+      new_index[i] = static_cast<int>(old_index.size());
+      old_index.push_back(i);
+    }
+    i = new_index[i];
+  }
+  std::vector<Eigen::Vector3d> positions(old_index.size());
+  for (size_t i = 0; i < old_index.size(); ++i) positions[i] = mesh.positions[old_index[i]];
+  mesh.positions = std::move(positions);
+  return old_index;
+}
+
+PolygonMesh subdivide_to_quads(const PolygonMesh& mesh, std::vector<int>* kind,
+                               std::vector<std::array<int, 2>>* edge_of) {
+  PolygonMesh out;
+  out.positions = mesh.positions;
+  if (kind) kind->assign(mesh.num_vertices(), 0);
+  if (edge_of) edge_of->assign(mesh.num_vertices(), {-1, -1});
+  std::unordered_map<long long, int> midpoint;
+  auto mid = [&](int a, int b) {
+    auto [it, inserted] = midpoint.emplace(edge_key(a, b), out.num_vertices());
+    if (inserted) {
+      out.positions.push_back(0.5 * (mesh.positions[a] + mesh.positions[b]));
+      if (kind) kind->push_back(1);
+      if (edge_of) edge_of->push_back({std::min(a, b), std::max(a, b)});
+    }
+    return it->second;
+  };
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
+    const int centre = out.num_vertices();
+    out.positions.push_back(c / k);
+    if (kind) kind->push_back(2);
+    if (edge_of) edge_of->push_back({-1, -1});
+    for (int i = 0; i < k; ++i) {
+      const int prev = v[(i + k - 1) % k], cur = v[i], next = v[(i + 1) % k];
+      out.add_face({cur, mid(cur, next), centre, mid(prev, cur)});
+    }
+  }
+  return out;
+}
+
+std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh) {
+  std::vector<std::array<int, 3>> tris;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    for (int i = 1; i + 1 < k; ++i) tris.push_back({v[0], v[i], v[i + 1]});
+  }
+  return tris;
+}
+
+Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f) {
+  const int k = mesh.face_size(f);
+  const int* v = mesh.face(f);
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();
+  for (int i = 0; i < k; ++i) n += mesh.positions[v[i]].cross(mesh.positions[v[(i + 1) % k]]);
+  const double len = n.norm();
+  return len > 0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+}
+
+}  // namespace nfield::remesh

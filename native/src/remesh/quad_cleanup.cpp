@@ -1,0 +1,331 @@
+#include "nfield/remesh/quad_cleanup.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "nfield/remesh/quad_stats.hpp"
+#include "nfield/remesh/remesh_surface.hpp"
+
+namespace nfield::remesh {
+
+namespace {
+
+inline long long edge_key(int a, int b) {
+  if (a > b) std::swap(a, b);
+  return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
+}
+
+std::vector<std::vector<int>> faces_of(const PolygonMesh& m) {
+  std::vector<std::vector<int>> f(m.num_faces());
+  for (int i = 0; i < m.num_faces(); ++i) f[i].assign(m.face(i), m.face(i) + m.face_size(i));
+  return f;
+}
+
+/// Union of faces a and b across their shared edge (u, v), where a contains u -> v and b contains v -> u:
+/// walk a from v round to u, then b from u round to v (exclusive of the shared endpoints' repeats).
+std::vector<int> merge_across(const std::vector<int>& a, const std::vector<int>& b, int u, int v) {
+  const int ka = static_cast<int>(a.size()), kb = static_cast<int>(b.size());
+  const int ia = static_cast<int>(std::find(a.begin(), a.end(), v) - a.begin());
+  const int ib = static_cast<int>(std::find(b.begin(), b.end(), u) - b.begin());
+  std::vector<int> out;
+  for (int k = 0; k < ka; ++k) out.push_back(a[(ia + k) % ka]);  // v ... u
+  for (int k = 1; k < kb - 1; ++k) out.push_back(b[(ib + k) % kb]);  // after u ... before v
+  return out;
+}
+
+/// For each directed edge, the face containing it.
+std::unordered_map<long long, int> directed_faces(const std::vector<std::vector<int>>& faces) {
+  std::unordered_map<long long, int> d;
+  for (int f = 0; f < static_cast<int>(faces.size()); ++f) {
+    const auto& p = faces[f];
+    for (size_t i = 0; i < p.size(); ++i)
+      d[(static_cast<long long>(p[i]) << 32) | static_cast<unsigned int>(p[(i + 1) % p.size()])] = f;
+  }
+  return d;
+}
+
+void rebuild(PolygonMesh& m, const std::vector<std::vector<int>>& faces) {
+  m.offsets.assign(1, 0);
+  m.indices.clear();
+  for (const auto& f : faces)
+    if (!f.empty()) m.add_face(f);
+}
+
+}  // namespace
+
+int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int max_quads) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  auto dir = directed_faces(faces);
+  std::vector<int> valence = vertex_valences(mesh).valence;
+  auto face_across = [&](int u, int v) {  // the face containing v -> u (across the edge u -> v)
+    auto it = dir.find((static_cast<long long>(v) << 32) | static_cast<unsigned int>(u));
+    return it == dir.end() ? -1 : it->second;
+  };
+  struct Candidate {
+    int gain;
+    double quality;
+    std::vector<int> strip;                   // faces: T1, quads..., T2
+    std::vector<std::vector<int>> replacement;
+    int v0, v1;                               // the two vertices losing an edge
+  };
+  std::vector<Candidate> cands;
+  const int F = static_cast<int>(faces.size());
+  for (int t1 = 0; t1 < F; ++t1) {
+    if (faces[t1].size() != 3) continue;
+    for (int c = 0; c < 3; ++c) {
+      const int a = faces[t1][c];
+      std::vector<int> A = {faces[t1][(c + 1) % 3]}, B = {faces[t1][(c + 2) % 3]};  // T1 = (a, A0, B0)
+      std::vector<int> strip = {t1};
+      int b = -1;
+      for (int step = 0; step <= max_quads; ++step) {
+        const int g = face_across(A.back(), B.back());  // contains B -> A
+        if (g < 0 || std::find(strip.begin(), strip.end(), g) != strip.end()) break;
+        const auto& fg = faces[g];
+        const int kg = static_cast<int>(fg.size());
+        const int ib = static_cast<int>(std::find(fg.begin(), fg.end(), B.back()) - fg.begin());
+        if (ib == kg || fg[(ib + 1) % kg] != A.back()) break;
+        if (kg == 3) {
+          if (step == 0 || g < t1) break;  // adjacent triangles are merged elsewhere; each strip once
+          b = fg[(ib + 2) % 3];
+          strip.push_back(g);
+          break;
+        }
+        if (kg != 4) break;
+        // g = (B_i, A_i, A_{i+1}, B_{i+1})
+        A.push_back(fg[(ib + 2) % 4]);
+        B.push_back(fg[(ib + 3) % 4]);
+        strip.push_back(g);
+      }
+      if (b < 0) continue;
+      const int k = static_cast<int>(A.size()) - 1;
+      std::vector<int> all = {a, b};
+      all.insert(all.end(), A.begin(), A.end());
+      all.insert(all.end(), B.begin(), B.end());
+      std::sort(all.begin(), all.end());
+      if (std::adjacent_find(all.begin(), all.end()) != all.end()) continue;
+      for (int variant = 0; variant < 2; ++variant) {
+        std::vector<std::vector<int>> rep;
+        int v0, v1;
+        if (variant == 0) {  // rungs A_i - B_{i+1}
+          rep.push_back({a, A[0], B[1], B[0]});
+          for (int i = 1; i < k; ++i) rep.push_back({A[i - 1], A[i], B[i + 1], B[i]});
+          rep.push_back({A[k - 1], A[k], b, B[k]});
+          v0 = A[k];
+          v1 = B[0];
+        } else {  // rungs B_i - A_{i+1}
+          rep.push_back({a, A[0], A[1], B[0]});
+          for (int i = 1; i < k; ++i) rep.push_back({B[i - 1], A[i], A[i + 1], B[i]});
+          rep.push_back({B[k - 1], A[k], b, B[k]});
+          v0 = A[0];
+          v1 = B[k];
+        }
+        const int gain = std::abs(valence[v0] - 4) + std::abs(valence[v1] - 4) - std::abs(valence[v0] - 5) -
+                         std::abs(valence[v1] - 5);
+        if (gain <= 0) continue;
+        double q = 1;
+        for (const auto& f : rep) q = std::min(q, polygon_min_jacobian(mesh.positions, f));
+        if (q > min_jacobian) cands.push_back({gain, q, strip, rep, v0, v1});
+      }
+    }
+  }
+  std::sort(cands.begin(), cands.end(), [](const Candidate& x, const Candidate& y) {
+    return x.gain != y.gain ? x.gain > y.gain : (x.strip.size() != y.strip.size() ? x.strip.size() < y.strip.size()
+                                                                                   : x.quality > y.quality);
+  });
+  std::vector<char> used(F, 0), touched(mesh.num_vertices(), 0);
+  int done = 0;
+  for (auto& c : cands) {
+    bool free = !touched[c.v0] && !touched[c.v1];
+    for (int f : c.strip) free = free && !used[f];
+    if (!free) continue;
+    for (int f : c.strip) used[f] = 1;
+    touched[c.v0] = touched[c.v1] = 1;  // their valences change: later candidates computed them before
+    for (size_t i = 0; i < c.strip.size(); ++i) faces[c.strip[i]] = i < c.replacement.size() ? c.replacement[i] : std::vector<int>{};
+    ++done;
+  }
+  rebuild(mesh, faces);
+  return done;
+}
+
+double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly) {
+  const int k = static_cast<int>(poly.size());
+  Vec3 n = Vec3::Zero();
+  for (int i = 0; i < k; ++i) n += P[poly[i]].cross(P[poly[(i + 1) % k]]);
+  if (n.norm() <= 0) return -1;
+  n.normalize();
+  double worst = 1;
+  for (int i = 0; i < k; ++i) {
+    const Vec3 e1 = P[poly[(i + 1) % k]] - P[poly[i]], e2 = P[poly[(i + k - 1) % k]] - P[poly[i]];
+    const double l = e1.norm() * e2.norm();
+    worst = std::min(worst, l > 0 ? e1.cross(e2).dot(n) / l : -1.0);
+  }
+  return worst;
+}
+
+CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double min_jacobian) {
+  CleanupReport report;
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  // Doublets.
+  {
+    const VertexValence vv = vertex_valences(mesh);
+    auto dir = directed_faces(faces);
+    for (int v = 0; v < mesh.num_vertices(); ++v) {
+      if (vv.valence[v] != 2 || vv.boundary[v] || kind[v] == kCorner) continue;
+      // Faces around v: find a face containing v, its neighbours a (prev) and b (next).
+      int f1 = -1;
+      for (int f = 0; f < static_cast<int>(faces.size()) && f1 < 0; ++f)
+        if (std::find(faces[f].begin(), faces[f].end(), v) != faces[f].end()) f1 = f;
+      if (f1 < 0) continue;
+      const auto& p = faces[f1];
+      const int k = static_cast<int>(p.size());
+      const int i = static_cast<int>(std::find(p.begin(), p.end(), v) - p.begin());
+      const int b = p[(i + 1) % k];
+      auto it = dir.find((static_cast<long long>(b) << 32) | static_cast<unsigned int>(v));
+      if (it == dir.end()) continue;
+      const int f2 = it->second;
+      if (f2 == f1) continue;
+      std::vector<int> merged = merge_across(faces[f1], faces[f2], v, b);
+      // merged reads b .. a v a ..: drop v and the repeated a.
+      merged.erase(std::remove(merged.begin(), merged.end(), v), merged.end());
+      std::vector<int> dedup;
+      for (size_t j = 0; j < merged.size(); ++j)
+        if (merged[j] != merged[(j + 1) % merged.size()]) dedup.push_back(merged[j]);
+      merged = dedup;
+      std::vector<int> sorted = merged;
+      std::sort(sorted.begin(), sorted.end());
+      if (merged.size() < 3 || std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) continue;
+      for (int f : {f1, f2})
+        for (size_t j = 0; j < faces[f].size(); ++j)
+          dir.erase((static_cast<long long>(faces[f][j]) << 32) | static_cast<unsigned int>(faces[f][(j + 1) % faces[f].size()]));
+      faces[f1] = merged;
+      faces[f2].clear();
+      for (size_t j = 0; j < merged.size(); ++j)
+        dir[(static_cast<long long>(merged[j]) << 32) | static_cast<unsigned int>(merged[(j + 1) % merged.size()])] = f1;
+      ++report.doublets;
+    }
+  }
+  // Triangle pairs and triangle + pentagon pairs, best first.
+  rebuild(mesh, faces);
+  faces = faces_of(mesh);
+  {
+    const VertexValence vv = vertex_valences(mesh);
+    std::vector<int> valence = vv.valence;
+    auto dir = directed_faces(faces);
+    struct Candidate {
+      double quality;
+      int f, g;
+      std::vector<int> a, b;  // replacement faces (b empty: one face)
+      int bonus;
+    };
+    std::vector<Candidate> cands;
+    for (int f = 0; f < static_cast<int>(faces.size()); ++f) {
+      if (faces[f].size() != 3) continue;
+      const auto& p = faces[f];
+      for (int i = 0; i < 3; ++i) {
+        const int u = p[i], v = p[(i + 1) % 3];
+        auto it = dir.find((static_cast<long long>(v) << 32) | static_cast<unsigned int>(u));
+        if (it == dir.end()) continue;
+        const int g = it->second;
+        const size_t kg = faces[g].size();
+        if (g == f || (kg != 3 && kg != 5) || (kg == 3 && g < f)) continue;
+        const std::vector<int> un = merge_across(p, faces[g], u, v);
+        if (kg == 3) {
+          const double q = polygon_min_jacobian(mesh.positions, un);
+          if (q > min_jacobian) cands.push_back({q + 1.0, f, g, un, {}, 0});
+          continue;
+        }
+        // Hexagon: try the three diagonals (j, j + 3).
+        for (int j = 0; j < 3; ++j) {
+          std::vector<int> qa = {un[j], un[j + 1], un[j + 2], un[j + 3]};
+          std::vector<int> qb = {un[j + 3], un[(j + 4) % 6], un[(j + 5) % 6], un[j]};
+          // Valence change: edge (u, v) removed, edge (un[j], un[j+3]) added.
+          auto irr = [&](int x, int dv) { return std::abs(valence[x] + dv - 4); };
+          int before = 0, after = 0;
+          std::vector<int> touched = {u, v, un[j], un[j + 3]};
+          std::sort(touched.begin(), touched.end());
+          touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+          for (int x : touched) {
+            const int dv = (x == un[j] || x == un[j + 3] ? 1 : 0) - (x == u || x == v ? 1 : 0);
+            before += irr(x, 0);
+            after += irr(x, dv);
+          }
+          if (after > before) continue;
+          const double q = std::min(polygon_min_jacobian(mesh.positions, qa), polygon_min_jacobian(mesh.positions, qb));
+          if (q > min_jacobian) cands.push_back({q, f, g, qa, qb, before - after});
+        }
+      }
+    }
+    std::sort(cands.begin(), cands.end(), [](const Candidate& x, const Candidate& y) { return x.quality > y.quality; });
+    std::vector<char> done(faces.size(), 0);
+    for (auto& c : cands) {
+      if (done[c.f] || done[c.g]) continue;
+      // Valences may have changed since the candidate was made only through faces already done; the
+      // touched faces are fresh, so the candidate still stands.
+      done[c.f] = done[c.g] = 1;
+      faces[c.f] = c.a;
+      faces[c.g] = c.b;
+      (c.b.empty() ? report.triangle_pairs : report.triangle_pentagon_pairs)++;
+    }
+  }
+  rebuild(mesh, faces);
+  report.triangle_strips = pair_triangles_through_strips(mesh, min_jacobian);
+  const std::vector<int> old = compact_vertices(mesh);
+  std::vector<char> k2(old.size());
+  for (size_t i = 0; i < old.size(); ++i) k2[i] = kind[old[i]];
+  kind = std::move(k2);
+  return report;
+}
+
+int split_large_faces(PolygonMesh& mesh, std::vector<char>& kind, const ProjectionTargets& targets, int min_size) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> out;
+  int split = 0;
+  for (auto& f : faces) {
+    const int k = static_cast<int>(f.size());
+    if (k < min_size) {
+      out.push_back(f);
+      continue;
+    }
+    Vec3 c = Vec3::Zero();
+    for (int v : f) c += mesh.positions[v];
+    c /= k;
+    const auto hit = targets.surface.closest(c);
+    const int centre = mesh.num_vertices();
+    mesh.positions.push_back(hit.triangle >= 0 ? hit.point : c);
+    kind.push_back(kNoFeature);
+    for (int i = 0; i + 2 <= k; i += 2) {
+      if (i + 2 < k || k % 2 == 0) out.push_back({centre, f[i], f[i + 1], f[(i + 2) % k]});
+    }
+    if (k % 2 == 1) out.push_back({centre, f[k - 1], f[0]});
+    ++split;
+  }
+  rebuild(mesh, out);
+  return split;
+}
+
+void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations) {
+  const int V = mesh.num_vertices();
+  for (int it = 0; it < iterations; ++it) {
+    std::vector<Vec3> sum(V, Vec3::Zero());
+    std::vector<int> count(V, 0);
+    for (int f = 0; f < mesh.num_faces(); ++f) {
+      const int k = mesh.face_size(f);
+      const int* v = mesh.face(f);
+      Vec3 c = Vec3::Zero();
+      for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
+      c /= k;
+      for (int i = 0; i < k; ++i) {
+        sum[v[i]] += c;
+        ++count[v[i]];
+      }
+    }
+    for (int v = 0; v < V; ++v) {
+      if (count[v] == 0 || kind[v] == kCorner) continue;
+      mesh.positions[v] = 0.5 * mesh.positions[v] + 0.5 * sum[v] / count[v];
+    }
+    project_vertices(mesh, kind, targets);
+  }
+}
+
+}  // namespace nfield::remesh

@@ -1,0 +1,210 @@
+#include "nfield/remesh/quad_remesher.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "nfield/errors.hpp"
+#include "nfield/remesh/multires_hierarchy.hpp"
+#include "nfield/remesh/quad_cleanup.hpp"
+#include "nfield/remesh/remesh_surface.hpp"
+
+namespace nfield::remesh {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string format(double x) {
+  std::ostringstream os;
+  os.precision(4);
+  os << x;
+  return os.str();
+}
+
+/// A component can hold a quad mesh of spacing s when its area is at least a few quads and it is not
+/// thinner than one quad: area >= 3 s^2 and bounding-box diagonal >= 2 s.
+/// Largest lattice (about the output face count) accepted: 2 million faces need about 2 GB on the way.
+constexpr double kMaxLatticePoints = 2e6;
+
+bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
+
+void check_options(const QuadRemeshOptions& o) {
+  if (!(o.edge_length > 0) || !std::isfinite(o.edge_length))
+    throw ParameterError("quad remesh: the target edge length must be a positive number (got " + format(o.edge_length) + ")");
+  if (!std::isfinite(o.sharp_angle_degrees) || o.sharp_angle_degrees >= 180)
+    throw ParameterError("quad remesh: sharp_angle must be below 180 degrees (<= 0 disables sharp edges)");
+  if (o.iterations < 1 || o.iterations > 1000) throw ParameterError("quad remesh: iterations must be in 1..1000");
+  if (o.relax_iterations < 0 || o.relax_iterations > 100) throw ParameterError("quad remesh: relax_iterations must be in 0..100");
+  if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
+}
+
+}  // namespace
+
+QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& triangle_directions,
+                             const QuadRemeshOptions& options, const Progress& progress) {
+  check_options(options);
+  if (static_cast<int>(triangle_directions.size()) != mesh.num_faces())
+    throw InputError("quad remesh: the field has " + std::to_string(triangle_directions.size()) +
+                     " directions but the mesh has " + std::to_string(mesh.num_faces()) + " faces");
+  for (size_t f = 0; f < triangle_directions.size(); ++f)
+    if (!triangle_directions[f].allFinite())
+      throw InputError("quad remesh: the field direction of face " + std::to_string(f) + " is not finite");
+  auto t0 = std::chrono::steady_clock::now();
+  auto report = [&](double fraction) {
+    if (progress && !progress(fraction)) throw Cancelled("quad remeshing cancelled");
+  };
+  report(0.0);
+  QuadRemeshResult result;
+  const double s = options.pure_quads ? 2 * options.edge_length : options.edge_length;
+  result.lattice_spacing = s;
+
+  // 1. Cut surface, restricted to the components that can hold the lattice.
+  RemeshSurface full = make_remesh_surface(mesh);
+  result.num_components = full.num_components;
+  std::vector<char> keep(full.num_components, 0);
+  int kept = 0;
+  for (int c = 0; c < full.num_components; ++c) {
+    keep[c] = component_fits(full.component_area[c], full.component_diagonal[c], s);
+    if (keep[c]) {
+      ++kept;
+      continue;
+    }
+    const std::string what = "component " + std::to_string(c) + " (" + std::to_string(full.component_triangles[c]) +
+                             " triangles, area " + format(full.component_area[c]) + ", size " +
+                             format(full.component_diagonal[c]) + ") is too small for the target edge length " +
+                             format(options.edge_length) + " (it needs an area of at least " + format(3 * s * s) +
+                             " and a size of at least " + format(2 * s) + ")";
+    if (options.refuse_small_components) throw InputError("quad remesh: " + what + "; lower the edge length or raise the face count");
+    result.messages.push_back(what + ": not remeshed");
+  }
+  if (kept == 0)
+    throw InputError("quad remesh: every component of the mesh is too small for the target edge length " +
+                     format(options.edge_length) + " (" + result.messages.front() +
+                     "); lower the edge length or raise the face count");
+  std::vector<Vec3> directions;
+  RemeshSurface surface;
+  if (kept == full.num_components) {
+    surface = std::move(full);
+  } else {
+    // Rebuild from the kept faces only (a TriangleMesh of the kept faces keeps the cut rules).
+    std::vector<int> faces_kept;
+    for (size_t t = 0; t < full.triangles.size(); ++t)
+      if (keep[full.vertex_component[full.triangles[t][0]]]) faces_kept.push_back(full.source_triangle[t]);
+    Triangles T(faces_kept.size(), 3);
+    for (size_t k = 0; k < faces_kept.size(); ++k) T.row(k) = mesh.faces().row(faces_kept[k]);
+    const TriangleMesh sub(mesh.positions(), T);
+    surface = make_remesh_surface(sub);
+    for (int& f : surface.source_triangle) f = faces_kept[f];
+  }
+  result.remeshed_components = kept;
+  // Refuse targets whose lattice would be too fine to hold in memory: the lattice has about area / s^2
+  // points, and the surface is refined to edges below s / 2 (about 8 area / s^2 vertices).
+  double kept_area = 0;
+  for (double a : surface.face_areas) kept_area += a;
+  const double lattice_points = kept_area / (s * s);
+  if (lattice_points > kMaxLatticePoints)
+    throw ParameterError("quad remesh: the target edge length " + format(options.edge_length) + " would make about " +
+                         format(lattice_points) + " faces; at most " + format(kMaxLatticePoints) +
+                         " are supported (raise the edge length or lower the face count)");
+  refine_long_edges(surface, 0.5 * s);
+  directions.resize(surface.triangles.size());
+  for (size_t t = 0; t < surface.triangles.size(); ++t) directions[t] = triangle_directions[surface.source_triangle[t]];
+  if (mesh.report().nonmanifold_edges.size() || mesh.report().num_orientation_cuts)
+    result.messages.push_back("non-manifold or non-orientable edges were cut: they become boundaries of the output");
+
+  // 2. Features. Chains shorter than two lattice steps (tiny holes, noise) are not kept.
+  const Features features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
+  result.num_boundary_feature_edges = features.num_boundary_edges;
+  result.num_sharp_feature_edges = features.num_sharp_edges;
+  if (features.num_dropped_chains)
+    result.messages.push_back(std::to_string(features.num_dropped_chains) +
+                              " feature chain(s) shorter than two lattice steps (small holes or creases) were not kept");
+
+  // 3. Vertex cross field.
+  std::vector<HierarchyLevel> levels(1);
+  HierarchyLevel& L = levels[0];
+  L.q = vertex_cross_field(surface, directions, &features, &result.num_vertices_without_field);
+  if (result.num_vertices_without_field)
+    result.messages.push_back(std::to_string(result.num_vertices_without_field) +
+                              " vertices have no field direction around them (zero field): their edges follow the mesh");
+  const int V = surface.num_vertices();
+  L.v = surface.positions;
+  L.n = surface.vertex_normals;
+  L.area = surface.vertex_areas;
+  L.adjacency_offsets = surface.adjacency_offsets;
+  L.adjacency = surface.adjacency;
+  L.adjacency_weight.assign(L.adjacency.size(), 1.0);
+  L.constraint_kind = features.vertex_kind;
+  L.constraint_point = surface.positions;
+  L.constraint_dir = features.vertex_tangent;
+  for (int v = 0; v < V; ++v)
+    if (L.n[v].squaredNorm() == 0) L.n[v] = Vec3::UnitZ();
+  result.seconds_setup = seconds_since(t0);
+  report(0.1);
+
+  // 4. Hierarchy and position field.
+  t0 = std::chrono::steady_clock::now();
+  build_hierarchy(levels);
+  result.num_levels = static_cast<int>(levels.size());
+  result.seconds_hierarchy = seconds_since(t0);
+  report(0.15);
+  t0 = std::chrono::steady_clock::now();
+  PositionFieldOptions po;
+  po.scale = s;
+  po.iterations = options.iterations;
+  po.seed = options.seed;
+  optimise_positions(levels, po, [&](double f) { return !progress || progress(0.15 + 0.7 * f); });
+  result.seconds_positions = seconds_since(t0);
+
+  // 5. Extraction.
+  t0 = std::chrono::steady_clock::now();
+  const ProjectionTargets targets = make_projection_targets(surface, features);
+  result.mesh = extract_quad_mesh(surface, features, levels[0], s, targets, options.max_face_size, result.extraction,
+                                  &result.vertex_feature_kind);
+  const CleanupReport cleanup = clean_up_quads(result.mesh, result.vertex_feature_kind);
+  result.cleanup_doublets = cleanup.doublets;
+  result.cleanup_triangle_pairs = cleanup.triangle_pairs + cleanup.triangle_pentagon_pairs;
+  result.cleanup_triangle_strips = cleanup.triangle_strips;
+  result.cleanup_split_faces = split_large_faces(result.mesh, result.vertex_feature_kind, targets);
+  relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
+  report(0.95);
+
+  // 6. Pure quads.
+  if (options.pure_quads) {
+    std::vector<int> kind;
+    std::vector<std::array<int, 2>> edge_of;
+    PolygonMesh fine = subdivide_to_quads(result.mesh, &kind, &edge_of);
+    std::vector<char> fkind(fine.num_vertices(), kNoFeature);
+    for (int v = 0; v < fine.num_vertices(); ++v) {
+      if (kind[v] == 0) fkind[v] = result.vertex_feature_kind[v];
+      // A midpoint lies on a feature curve when both ends do (corner or curve).
+      else if (kind[v] == 1 && result.vertex_feature_kind[edge_of[v][0]] && result.vertex_feature_kind[edge_of[v][1]])
+        fkind[v] = kCurve;
+    }
+    std::vector<char> project_kind = fkind;
+    for (int v = 0; v < fine.num_vertices(); ++v)
+      if (kind[v] == 0) project_kind[v] = kNoFeature;  // original vertices stay where they are
+    std::vector<Vec3> kept_positions(fine.positions.begin(), fine.positions.begin() + result.mesh.num_vertices());
+    project_vertices(fine, project_kind, targets);
+    std::copy(kept_positions.begin(), kept_positions.end(), fine.positions.begin());
+    result.mesh = std::move(fine);
+    result.vertex_feature_kind = std::move(fkind);
+    relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
+  }
+  result.seconds_extraction = seconds_since(t0);
+  if (result.extraction.removed_conflicting)
+    result.messages.push_back(std::to_string(result.extraction.removed_conflicting) +
+                              " extracted face(s) would have made an edge non-manifold and were left out (holes)");
+  if (result.extraction.dropped_large_faces)
+    result.messages.push_back(std::to_string(result.extraction.dropped_large_faces) + " extracted face(s) larger than " +
+                              std::to_string(options.max_face_size) + " sides were left out (holes)");
+  if (result.mesh.num_faces() == 0)
+    throw SolverError("quad remesh: the extraction produced no face (is the field zero everywhere?)");
+  report(1.0);
+  return result;
+}
+
+}  // namespace nfield::remesh

@@ -1,0 +1,179 @@
+#include "nfield/remesh/quad_stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+namespace nfield::remesh {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+double corner_angle(const Vec3& prev, const Vec3& v, const Vec3& next) {
+  const Vec3 a = prev - v, b = next - v;
+  const double na = a.norm(), nb = b.norm();
+  if (na <= 0 || nb <= 0) return 0.0;
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+}  // namespace
+
+FaceCounts count_faces(const PolygonMesh& mesh) {
+  FaceCounts c;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    if (k == 4) ++c.quads;
+    else if (k == 3) ++c.triangles;
+    else ++c.other;
+  }
+  return c;
+}
+
+VertexValence vertex_valences(const PolygonMesh& mesh) {
+  VertexValence r;
+  r.valence.assign(mesh.num_vertices(), 0);
+  r.boundary.assign(mesh.num_vertices(), 0);
+  std::unordered_map<long long, int> uses;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    for (int i = 0; i < k; ++i) {
+      int a = v[i], b = v[(i + 1) % k];
+      if (a > b) std::swap(a, b);
+      ++uses[(static_cast<long long>(a) << 32) | static_cast<unsigned int>(b)];
+    }
+  }
+  for (const auto& [key, count] : uses) {
+    const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffLL);
+    ++r.valence[a];
+    ++r.valence[b];
+    if (count == 1) r.boundary[a] = r.boundary[b] = 1;
+  }
+  return r;
+}
+
+IrregularVertices irregular_vertices(const PolygonMesh& mesh) {
+  const VertexValence vv = vertex_valences(mesh);
+  std::vector<double> angle(mesh.num_vertices(), 0.0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    for (int i = 0; i < k; ++i)
+      angle[v[i]] += corner_angle(mesh.positions[v[(i + k - 1) % k]], mesh.positions[v[i]],
+                                  mesh.positions[v[(i + 1) % k]]);
+  }
+  IrregularVertices r;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (vv.valence[v] == 0) continue;
+    if (!vv.boundary[v]) {
+      if (vv.valence[v] != 4) r.interior.push_back(v);
+    } else {
+      const int expected = 1 + static_cast<int>(std::lround(angle[v] / (kPi / 2)));
+      if (vv.valence[v] != std::max(expected, 2)) r.boundary.push_back(v);
+    }
+  }
+  return r;
+}
+
+ReferenceSurface make_reference(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
+                                const std::vector<Vec3>& directions) {
+  ReferenceSurface r;
+  r.normals.resize(triangles.size());
+  for (size_t t = 0; t < triangles.size(); ++t) {
+    const auto& tri = triangles[t];
+    const Vec3 n = (vertices[tri[1]] - vertices[tri[0]]).cross(vertices[tri[2]] - vertices[tri[0]]);
+    const double len = n.norm();
+    r.normals[t] = len > 0 ? Vec3(n / len) : Vec3::Zero();
+  }
+  r.directions = directions;
+  r.directions.resize(triangles.size(), Vec3::Zero());
+  r.tree = TriangleTree(vertices, triangles);
+  return r;
+}
+
+std::vector<double> scaled_jacobians(const PolygonMesh& mesh, const ReferenceSurface* reference) {
+  std::vector<double> out(mesh.num_faces(), 0.0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    Vec3 n = polygon_normal(mesh, f);
+    if (reference && !reference->tree.empty()) {
+      Vec3 c = Vec3::Zero();
+      for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
+      const auto hit = reference->tree.closest(c / k);
+      if (hit.triangle >= 0 && reference->normals[hit.triangle].squaredNorm() > 0) n = reference->normals[hit.triangle];
+    }
+    double worst = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < k; ++i) {
+      const Vec3& p = mesh.positions[v[i]];
+      const Vec3 e1 = mesh.positions[v[(i + 1) % k]] - p, e2 = mesh.positions[v[(i + k - 1) % k]] - p;
+      const double l = e1.norm() * e2.norm();
+      double j = l > 0 ? e1.cross(e2).dot(n) / l : 0.0;
+      if (k == 3) j *= 2.0 / std::sqrt(3.0);
+      worst = std::min(worst, j);
+    }
+    out[f] = std::isfinite(worst) ? worst : 0.0;
+  }
+  return out;
+}
+
+std::vector<double> edge_alignment_degrees(const PolygonMesh& mesh, const ReferenceSurface& reference) {
+  const auto edges = unique_edges(mesh);
+  std::vector<double> out(edges.size(), std::numeric_limits<double>::quiet_NaN());
+  if (reference.tree.empty()) return out;
+  for (size_t e = 0; e < edges.size(); ++e) {
+    const Vec3& a = mesh.positions[edges[e][0]];
+    const Vec3& b = mesh.positions[edges[e][1]];
+    const auto hit = reference.tree.closest(0.5 * (a + b));
+    if (hit.triangle < 0) continue;
+    const Vec3& n = reference.normals[hit.triangle];
+    const Vec3& d = reference.directions[hit.triangle];
+    if (d.squaredNorm() == 0 || n.squaredNorm() == 0) continue;
+    const Vec3 x = (d - n * n.dot(d)).normalized();
+    const Vec3 y = n.cross(x);
+    const Vec3 t = b - a;
+    const double tx = t.dot(x), ty = t.dot(y);
+    if (tx == 0 && ty == 0) continue;
+    // Angle modulo 90 degrees, folded into [0, 45].
+    double ang = std::fmod(std::abs(std::atan2(ty, tx)), kPi / 2);
+    ang = std::min(ang, kPi / 2 - ang);
+    out[e] = ang * 180.0 / kPi;
+  }
+  return out;
+}
+
+double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree) {
+  if (tree.empty()) return std::numeric_limits<double>::infinity();
+  double worst2 = 0;
+  auto sample = [&](const Vec3& p) { worst2 = std::max(worst2, tree.closest(p).squared_distance); };
+  std::vector<char> used(mesh.num_vertices(), 0);
+  for (int i : mesh.indices) used[i] = 1;
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    if (used[v]) sample(mesh.positions[v]);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    Vec3 c = Vec3::Zero();
+    for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
+    c /= k;
+    sample(c);
+    for (int i = 0; i < k; ++i) {
+      sample(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));
+      sample(0.5 * (mesh.positions[v[i]] + c));
+    }
+  }
+  return std::sqrt(worst2);
+}
+
+double hausdorff_distance(const PolygonMesh& mesh, const ReferenceSurface& reference) {
+  const double forward = one_sided_distance(mesh, reference.tree);
+  // Backward: samples of the reference triangles to the (fan-triangulated) polygon mesh.
+  PolygonMesh ref;
+  ref.positions = reference.tree.vertices();
+  for (const auto& t : reference.tree.triangles()) ref.add_face({t[0], t[1], t[2]});
+  const TriangleTree out_tree(mesh.positions, fan_triangulate(mesh));
+  const double backward = one_sided_distance(ref, out_tree);
+  return std::max(forward, backward);
+}
+
+}  // namespace nfield::remesh

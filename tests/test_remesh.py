@@ -1,0 +1,330 @@
+"""Quad remeshing along a designed field (nfield.core.quad_remesh, native/include/nfield/remesh/): properties
+of the output on every test mesh, determinism, following a constraint, irregular vertices at the field's
+singularities, dirty input, bad input, progress / cancel / GIL, and the CLI.
+
+Runtime: about a minute on the shared 2-core machine (every test mesh is remeshed once at ~1,500 faces; the
+bunny and the armadillo are marked `slow`)."""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+from conftest import MESH_NAMES, ROOT, core_mesh, mesh_path, run_beside_main_loop
+import meshgen
+from nfield.core import (
+    DesignSession,
+    DirectionConstraint,
+    Mesh,
+    field_directions,
+    native,
+    quad_remesh,
+    smoothest_field,
+    solve,
+)
+from nfield.core.remesh import polygons_to_arrays
+
+
+def euler_charge(V, F) -> int:
+    """sum over vertices (4 - valence) + sum over faces (4 - size); equals 4 chi for a closed polygon mesh."""
+    off, idx = polygons_to_arrays(F)
+    _, _, valence, _ = native().polygon_irregular_vertices(np.asarray(V), off, idx)
+    valence = np.asarray(valence)
+    used = valence > 0
+    return int(np.sum(4 - valence[used]) + sum(4 - len(f) for f in F))
+
+
+def vertex_distance_to_input(V, mesh) -> float:
+    """Largest distance of the points V to the input surface (each point as a degenerate polygon, so that
+    polygon_quality samples nothing else)."""
+    n = len(V)
+    off = np.arange(0, 3 * n + 1, 3)
+    idx = np.repeat(np.arange(n), 3)
+    active = np.asarray(mesh.native.face_active)
+    tris = np.asarray(mesh.native.faces, dtype=np.int64)[active]
+    q = native().polygon_quality(np.asarray(V, float), off, idx, np.asarray(mesh.native.positions), tris)
+    return float(q["distance_to_reference"])
+
+
+# ---------------------------------------------------------------------------------------------- every mesh
+# The two largest meshes (69k and 86k faces) run the same code as the others on more data: `slow` (left out
+# of `test --quick` and of the sanitizer job).
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("stanford-bunny.obj", "armadillo.obj")
+                                  else n for n in MESH_NAMES])
+def test_output_is_manifold_and_oriented_on_every_test_mesh(name):
+    mesh = core_mesh(name)
+    field = solve(mesh, n=4, order=2, align="curvature-max")
+    V, F, st = quad_remesh(mesh, field, target_faces=1500)
+    print(name, {k: st[k] for k in ("num_faces", "quad_fraction", "irregular_vertices", "field_singularities",
+                                    "alignment_mean_deg", "hausdorff_relative", "min_scaled_jacobian")})
+    assert st["manifold"] and st["oriented"], st["manifold_report"]
+    assert st["manifold_report"]["nonmanifold_vertices"] == 0 and st["manifold_report"]["inconsistent_edges"] == 0
+    assert all(len(f) >= 3 and len(set(f)) == len(f) for f in F)
+    assert np.isfinite(V).all()
+    # The face count follows the target: the lattice has one cell per edge_length^2 of area, so the count is
+    # close to the target; 25% covers the area the lattice loses at boundaries, features and small parts.
+    assert 0.75 * 1500 < st["num_faces"] < 1.25 * 1500
+    # Every output vertex lies on the input (projected onto it): up to rounding.
+    assert vertex_distance_to_input(V, mesh) < 1e-9 * mesh.native.bounding_box_diagonal
+    if mesh.report["num_boundary_edges"] == 0 and mesh.report["num_components"] == 1 and st["closed"]:
+        chi = mesh.report["euler_characteristic"]
+        assert euler_charge(V, F) == 4 * chi  # closed output of the input's topology
+
+
+def test_pure_quads_are_all_quads_and_manifold():
+    mesh = core_mesh("fandisk.obj")
+    field = solve(mesh, n=4, order=2, align="curvature-max")
+    V, F, st = quad_remesh(mesh, field, target_faces=2000, pure_quads=True)
+    assert st["quad_fraction"] == 1.0 and all(len(f) == 4 for f in F)
+    assert st["manifold"] and st["oriented"]
+    assert 0.7 * 2000 < st["num_faces"] < 1.3 * 2000
+
+
+# ---------------------------------------------------------------------------------------------- determinism
+def test_deterministic_per_seed():
+    mesh = core_mesh("rocker-arm.obj")
+    field = solve(mesh, n=4, order=2, align="curvature-max")
+    a = quad_remesh(mesh, field, target_faces=800, seed=7, stats=False)
+    b = quad_remesh(mesh, field, target_faces=800, seed=7, stats=False)
+    c = quad_remesh(mesh, field, target_faces=800, seed=8, stats=False)
+    assert np.array_equal(a.vertices, b.vertices) and a.faces == b.faces
+    assert not (a.vertices.shape == c.vertices.shape and np.array_equal(a.vertices, c.vertices))
+
+
+# ---------------------------------------------------------------------------------------------- follows the field
+def _edge_angle_mod_90(V, F, centre, radius):
+    """Circular mean (mod 90 degrees) of the directions of the edges whose midpoints lie within radius."""
+    edges = {(min(a, b), max(a, b)) for f in F for a, b in zip(f, f[1:] + f[:1])}
+    e = np.array(sorted(edges))
+    mid = 0.5 * (V[e[:, 0]] + V[e[:, 1]])
+    near = np.linalg.norm(mid[:, :2] - centre[:2], axis=1) < radius
+    d = V[e[near, 1]] - V[e[near, 0]]
+    theta = np.arctan2(d[:, 1], d[:, 0])
+    z = np.mean(np.exp(4j * theta))
+    return math.degrees(np.angle(z) / 4), abs(z), int(near.sum())
+
+
+def test_rotating_a_single_constraint_rotates_the_edges_around_it():
+    V, F = meshgen.grid(41, 41, random_diagonals=True, seed=3)
+    mesh = Mesh(V, F)
+    centre = np.array([0.5, 0.5, 0.0])
+    face = int(np.argmin(np.linalg.norm(meshgen.face_centroids(V, F) - centre, axis=1)))
+    angles = {}
+    for degrees in (0.0, 30.0):
+        t = math.radians(degrees)
+        field = solve(mesh, n=4, order=2, constraints=[DirectionConstraint(face, (math.cos(t), math.sin(t), 0.0))])
+        Vq, Fq, st = quad_remesh(mesh, field, target_faces=400, keep_boundary=False)
+        angle, coherence, count = _edge_angle_mod_90(Vq, Fq, centre, 0.25)
+        print(degrees, angle, coherence, count)
+        assert count > 40 and coherence > 0.95  # the edges near the constraint form one straight grid
+        angles[degrees] = angle
+    turned = (angles[30.0] - angles[0.0]) % 90.0
+    # 30 +- 3 degrees (the issue's tolerance): the field is exactly constant on the flat square (biharmonic
+    # with one constraint), and the edges follow it to about a degree (alignment statistics).
+    assert abs(turned - 30.0) <= 3.0, angles
+
+
+def test_irregular_vertices_sit_at_the_fields_singularities():
+    """On a sphere the smoothest cross field has 8 singularities of index +1/4. Every one of them gets an
+    irregular vertex (valence 3) or a triangle within 2.5 edge lengths, and the irregular vertices
+    concentrate there: they are on average clearly closer to a singularity than the output vertices are.
+    Not all of them: the position field also has dislocations (a triangle next to a valence-5 vertex) away
+    from the singularities, where the lattice must gain or lose a row (docs/quad_remeshing.md)."""
+    V, F = meshgen.icosphere(4)
+    mesh = Mesh(V, F)
+    field = smoothest_field(mesh, 4)
+    sings = [v for v, i in field.singularities]
+    assert len(sings) == 8 and all(abs(i - 0.25) < 1e-9 for _, i in field.singularities)
+    S = mesh.vertices[sings]
+    Vq, Fq, st = quad_remesh(mesh, field, target_faces=600)
+    h = st["edge_length"]
+    irr = np.asarray(st["irregular_vertex_list"], dtype=int)
+    marks = np.concatenate([Vq[irr], np.array([Vq[f].mean(0) for f in Fq if len(f) != 4]).reshape(-1, 3)])
+    to_mark = np.linalg.norm(S[:, None] - marks[None], axis=2).min(axis=1) / h
+    print("singularity -> nearest irregular vertex or non-quad face (edge lengths):", np.round(np.sort(to_mark), 2))
+    assert to_mark.max() < 2.5
+    def mean_distance(P):
+        return float(np.linalg.norm(P[:, None] - S[None], axis=2).min(axis=1).mean())
+    used = np.unique(np.concatenate([np.asarray(f) for f in Fq]))
+    ratio = mean_distance(Vq[irr]) / mean_distance(Vq[used])
+    print("irregular vertices: mean distance to a singularity / that of all vertices =", ratio, len(irr))
+    # The ratio is 1 for irregular vertices spread like all the others; measured 0.64 (seed 0). 0.75 asks for
+    # a clear concentration while leaving room for the dislocations described above.
+    assert ratio < 0.75
+    assert st["irregular_per_singularity"] == len(irr) / 8
+
+
+# ---------------------------------------------------------------------------------------------- dirty input
+def test_two_components_a_hole_and_a_tiny_part():
+    V1, F1 = meshgen.icosphere(3)
+    V2, F2 = meshgen.icosphere(3)
+    V2 = V2 * 0.7 + np.array([3.0, 0.0, 0.0])
+    # A hole: remove a cap of the second sphere (radius ~0.42, several edge lengths across).
+    keep2 = ~np.any(V2[F2][:, :, 2] > 0.56, axis=1)
+    V3, F3 = meshgen.icosphere(1)
+    V3 = V3 * 0.01 + np.array([0.0, 3.0, 0.0])  # far too small for the target edge
+    V = np.concatenate([V1, V2, V3])
+    F = np.concatenate([F1, F2[keep2] + len(V1), F3 + len(V1) + len(V2)])
+    mesh = Mesh(V, F)
+    field = solve(mesh, n=4, order=2, align="curvature-max")
+    Vq, Fq, st = quad_remesh(mesh, field, target_faces=600)
+    assert st["components"] == 3 and st["remeshed_components"] == 2
+    assert any("too small" in m and "not remeshed" in m for m in st["messages"])
+    assert st["manifold"] and st["oriented"]
+    # Both big components are covered: output vertices near each sphere.
+    r1 = np.linalg.norm(Vq, axis=1)
+    r2 = np.linalg.norm(Vq - [3.0, 0.0, 0.0], axis=1)
+    assert (np.abs(r1 - 1.0) < 0.05).sum() > 100 and (np.abs(r2 - 0.7) < 0.05).sum() > 50
+    assert st["manifold_report"]["boundary_edges"] > 0  # the hole stays a hole
+    with pytest.raises(ValueError, match="too small for the target edge length"):
+        quad_remesh(mesh, field, target_faces=600, strict=True)
+
+
+def test_nonmanifold_edge_is_cut_and_slivers_are_survived():
+    # Three square sheets sharing the edge x = 0.5 (a "book"), plus sliver triangles in one sheet.
+    Va, Fa = meshgen.grid(21, 21)
+    Vb = Va[:, [0, 2, 1]] * [1, 1, 1] + [0, 0, 0]  # the sheet in the xz plane, sharing y = 0 ... edge
+    sheets_V = [Va, Va[:, [0, 2, 1]], Va[:, [0, 2, 1]] * [1, 1, -1]]
+    V = np.concatenate(sheets_V)
+    F = np.concatenate([Fa + k * len(Va) for k in range(3)])
+    # Weld the shared row y = 0 of sheet 0 with z = 0 rows of sheets 1, 2 (same positions).
+    key = {tuple(np.round(p, 9)): i for i, p in enumerate(V)}
+    remap = np.array([key[tuple(np.round(p, 9))] for p in V])
+    F = remap[F]
+    del Vb
+    sliver = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 1e-4], [2.0, 0.0, 0.0]]) + [5.0, 5.0, 0.0]
+    mesh = Mesh(np.concatenate([V, sliver]), np.concatenate([F, [[len(V), len(V) + 1, len(V) + 2]]]))
+    assert len(mesh.report["nonmanifold_edges"]) > 0
+    field = solve(mesh, n=4, order=2, align="none", constraints=[DirectionConstraint(0, (1.0, 0.0, 0.0))])
+    Vq, Fq, st = quad_remesh(mesh, field, target_faces=300)
+    assert st["manifold"] and st["oriented"]
+    assert any("non-manifold" in m for m in st["messages"])
+    assert any("too small" in m for m in st["messages"])  # the lone sliver is its own tiny component
+
+
+# ---------------------------------------------------------------------------------------------- bad input
+@pytest.fixture(scope="module")
+def fandisk():
+    mesh = core_mesh("fandisk.obj")
+    return mesh, solve(mesh, n=4, order=2, align="curvature-max")
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({}, "exactly one of target_faces"),
+    ({"target_faces": 100, "edge_length": 0.1}, "exactly one of target_faces"),
+    ({"target_faces": 0}, "target_faces must be a positive integer"),
+    ({"target_faces": 2.5}, "target_faces must be a positive integer"),
+    ({"edge_length": -1.0}, "edge_length must be a positive"),
+    ({"edge_length": float("nan")}, "edge_length must be a positive"),
+    ({"target_faces": 100, "sharp_angle": 200.0}, "sharp_angle must be below 180"),
+    ({"target_faces": 100, "seed": -1}, "seed must be an integer"),
+    ({"target_faces": 100, "iterations": 0}, "iterations must be an integer in 1..1000"),
+    ({"target_faces": 100, "n": 3}, "n = 3 given, but the field has n = 4"),
+    ({"edge_length": 1e6}, "every component of the mesh is too small"),
+    ({"target_faces": 10**9}, "would make about 1e.09 faces; at most 2e.06"),
+])
+def test_bad_parameters_are_named(fandisk, kwargs, message):
+    mesh, field = fandisk
+    with pytest.raises(ValueError, match=message):
+        quad_remesh(mesh, field, **kwargs)
+
+
+def test_bad_fields_are_named(fandisk):
+    mesh, field = fandisk
+    six = solve(mesh, n=6, order=2, align="none", constraints=[DirectionConstraint(0, (1.0, 0.0, 0.0))])
+    with pytest.raises(ValueError, match="n = 4 is used as is, n = 1 and n = 2 take the field"):
+        quad_remesh(mesh, six, target_faces=100)
+    with pytest.raises(ValueError, match="one 3D vector per face"):
+        quad_remesh(mesh, np.zeros((5, 3)), target_faces=100)
+    with pytest.raises(ValueError, match="zero .or normal to the surface. on every face"):
+        quad_remesh(mesh, np.zeros((mesh.num_faces, 3)), target_faces=100)
+    bad = field.directions.copy()
+    bad[7] = np.nan
+    with pytest.raises(ValueError, match="non-finite vector at triangle 7"):
+        quad_remesh(mesh, bad, target_faces=100)
+    with pytest.raises(ValueError, match="needs its symmetry order n"):
+        quad_remesh(mesh, field.representation, target_faces=100)
+    other = core_mesh("sphere.obj")
+    with pytest.raises(ValueError, match="another mesh"):
+        quad_remesh(mesh, DesignSession(other), target_faces=100)
+
+
+def test_line_field_and_array_and_session_inputs(fandisk):
+    mesh, field = fandisk
+    line = solve(mesh, n=2, order=2, align="curvature-max")
+    V2, F2, s2 = quad_remesh(mesh, line, target_faces=500)
+    assert s2["n"] == 2 and s2["manifold"]
+    # The same field given as per-face vectors, as a session and as representation vectors: same mesh.
+    a = quad_remesh(mesh, field, target_faces=500, stats=False)
+    b = quad_remesh(mesh, field.directions, target_faces=500, stats=False)
+    c = quad_remesh(mesh, field.representation, n=4, target_faces=500, stats=False)
+    session = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    d = quad_remesh(mesh, session, target_faces=500, stats=False)
+    for other in (b, c, d):
+        assert other.faces == a.faces and np.allclose(other.vertices, a.vertices, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------- progress, cancel, GIL
+def test_progress_cancel_and_gil(fandisk):
+    mesh, field = fandisk
+    seen = []
+    quad_remesh(mesh, field, target_faces=1000, progress=lambda f: seen.append(f), stats=False)
+    assert seen[0] == 0.0 and seen[-1] == 1.0 and all(b >= a for a, b in zip(seen, seen[1:]))
+    with pytest.raises(native().Cancelled):
+        quad_remesh(mesh, field, target_faces=1000, progress=lambda f: f < 0.5)
+
+    class Stop(Exception):
+        pass
+
+    def boom(f):
+        if f > 0.3:
+            raise Stop("from the callback")
+    with pytest.raises(Stop):
+        quad_remesh(mesh, field, target_faces=1000, progress=boom)
+    threads = []
+    box = run_beside_main_loop(lambda: quad_remesh(mesh, field, target_faces=3000, stats=False,
+                                                   progress=lambda f: threads.append(threading.current_thread().name)))
+    assert "error" not in box, box.get("error")
+    print(f"remesh {box['seconds']:.3f} s, main loop {box['count']} iterations, longest gap {box['gap'] * 1e3:.1f} ms")
+    assert set(threads) == {"solver"}
+    # The GIL is released: the main loop kept running (the longest pause is a small part of the work).
+    assert box["gap"] < 0.25 * box["seconds"]
+
+
+# ---------------------------------------------------------------------------------------------- CLI
+def _cli(*args):
+    # The environment is kept (the sanitizer job's LD_PRELOAD / ASAN_OPTIONS must reach the child).
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "addon"))
+    env.pop("NFIELD_DEBUG", None)
+    return subprocess.run([sys.executable, "-m", "nfield", *map(str, args)], capture_output=True, text=True,
+                          env=env, timeout=300)
+
+
+def test_cli_remesh(tmp_path):
+    out = tmp_path / "fandisk_quads.obj"
+    r = _cli("remesh", mesh_path("fandisk.obj"), "--faces", 800, "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert "quads" in r.stdout and "Hausdorff" in r.stdout
+    faces = [line for line in out.read_text().splitlines() if line.startswith("f ")]
+    assert 600 < len(faces) < 1000 and sum(len(f.split()) == 5 for f in faces) > 0.9 * len(faces)
+    # With a field file (as written by `solve --out`) and JSON output.
+    field = tmp_path / "field.npy"
+    assert _cli("solve", mesh_path("fandisk.obj"), "--n", 2, "--align", "curvature-max", "--out", field).returncode == 0
+    r = _cli("remesh", mesh_path("fandisk.obj"), "--field", field, "--n", 2, "--faces", 500, "--out", out,
+             "--pure-quads", "--json")
+    assert r.returncode == 0, r.stderr
+    import json
+    st = json.loads(r.stdout)
+    assert st["quad_fraction"] == 1.0 and st["n"] == 2
+    # Failures: one line, exit 2.
+    r = _cli("remesh", mesh_path("fandisk.obj"), "--faces", 500, "--out", tmp_path / "x.ply")
+    assert r.returncode == 2 and "remesh writes .obj" in r.stderr
+    r = _cli("remesh", mesh_path("fandisk.obj"), "--field", field, "--n", 3, "--faces", 500, "--out", out)
+    assert r.returncode == 2 and "no quad structure" in r.stderr
+    r = _cli("remesh", mesh_path("fandisk.obj"), "--edge-length", 1e6, "--out", out)
+    assert r.returncode == 2 and "too small for the target edge length" in r.stderr
