@@ -71,7 +71,6 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
 
 void ExactSolver::factor(const ProgressCallback& progress) {
   const FieldOperators& o = *ops_;
-  const TriangleMesh& mesh = o.mesh();
   std::vector<int> fixed;
   fixed.reserve(frozen_.size() + anchors_.size());
   for (const auto& [f, z] : frozen_) fixed.push_back(f);
