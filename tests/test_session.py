@@ -683,7 +683,7 @@ def test_cancel_leaves_session_usable():
         calls.append(fraction)
         raise KeyboardInterrupt
 
-    # An exception in the callback cancels too, and comes back as itself (bindings.cpp run_with_progress).
+    # An exception in the callback cancels too, and comes back as itself (native/python/binding_support.hpp run_with_progress).
     for cb, expected in ((refuse, Cancelled), (refuse_at_end, Cancelled), (boom, Boom),
                          (interrupt, KeyboardInterrupt)):
         calls.clear()
