@@ -4,6 +4,8 @@
 #include <string>
 
 #include "binding_support.hpp"
+#include "nfield/basis_cache.hpp"
+#include "nfield/basis_memory.hpp"
 #include "nfield/memory_guard.hpp"
 #include "nfield/per_face.hpp"
 #include "nfield/reduced_solver.hpp"
@@ -69,11 +71,11 @@ void bind_spectral(py::module_& m) {
       .def_static("load", [](const std::string& path, std::shared_ptr<FieldOperators> ops, int k,
                              const py::object& precision) {
         const int p = precision.is_none() ? -1 : static_cast<int>(parse_precision(precision.cast<std::string>()));
-        return without_gil([&] { return std::make_shared<SpectralBasis>(SpectralBasis::load(path, *ops, k, p)); });
+        return without_gil([&] { return std::make_shared<SpectralBasis>(load_basis(path, *ops, k, p)); });
       }, py::arg("path"), py::arg("ops"), py::arg("k") = 0, py::arg("precision") = py::none(),
          "Read a basis saved for these operators; ValueError if missing, corrupt or stale")
       .def("save", [](const SpectralBasis& b, const std::string& path) {
-        without_gil([&] { b.save(path); });
+        without_gil([&] { save_basis(b, path); });
       }, py::arg("path"))
       .def_property_readonly("size", &SpectralBasis::size)
       .def_property_readonly("num_unknowns", &SpectralBasis::num_unknowns)
