@@ -3,7 +3,8 @@
 //
 // The build links OpenBLAS (or the reference BLAS/LAPACK); EIGEN_USE_BLAS is deliberately not defined,
 // so Eigen's own products stay Eigen's and only the calls below go to BLAS: the tall-skinny products of
-// the Lanczos iteration (N x m times m x b with N >> m), where the BLAS kernels are several times faster.
+// the Lanczos iteration (N x m times m x b with N >> m), the projections of the spectral basis and the
+// dense Hermitian eigen-decomposition.
 #pragma once
 #include <complex>
 
