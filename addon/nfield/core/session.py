@@ -8,8 +8,8 @@ warm between edits:
   constraint (the drag in the UI) then costs no sparse solve (only the small Schur system, eqs. 13-14);
   a constraint on a new face costs one complex back-substitution (both real columns at once); removing a
   constraint costs nothing. A solve that brings many new faces at once (more than four: a loaded design)
-  solves directly (one forward substitution per face and two solves) and the next solve without new faces
-  computes their columns in one block. Changing n, order, alignment or strength refactors (lazily, on the
+  solves directly (a forward substitution along each face's elimination-tree path, then one solve) and the
+  next solve without new faces computes their columns in one block. Changing n, order, alignment or strength refactors (lazily, on the
   next solve). An n-vector spline without alignment (lambda = 0, the paper's eq. 8 exactly) substitutes the
   vector constraints present when it factors ("anchors": what keeps V positive definite on flat and
   developable meshes); removing one of them refactors, adding others does not.
