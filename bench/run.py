@@ -4,6 +4,9 @@ live session and the paper's Fig. 8, with the paper's numbers beside ours.
 Parts (each also runs alone; every mesh in its own subprocess):
   exact     bench/exact_solver.py  factorization, unreduced solve (harmonic, biharmonic), peak memory; includes
                                    "armadillo-x4", the armadillo subdivided once (4x: 345,928 faces, generated)
+  oneshot   bench/one_shot.py      the one-shot rows: nfield.core.solve end to end against the bare factorization
+                                   (n = 1, 4; m = 1, 2; vector and direction splines; 30 constraints) and a live
+                                   session's first solve with 30 new constraints
   spectral  bench/spectral.py      basis set-up (k = 500, wall and CPU), basis memory double / float32, reduced
                                    set-up & solve, reduced update, strength change, reconstruction, float32 vs
                                    double; --x4-basis adds the basis of the subdivided armadillo (long: see
@@ -17,11 +20,11 @@ Writes bench/results/table1.{json,md} (the combined table, with --quick: table1_
 own files, prints the combined JSON and then the readable table.
 
 --quick: small meshes, small k, few repeats (validates the scripts: under a minute on a quiet machine, a few
-minutes on a busy one; the numbers mean little). Default: the full run, about 10 min on the shared 2-core
+minutes on a busy one; the numbers mean little). Default: the full run, about 18 min on the shared 2-core
 machine at load 6-8 once the Fig. 8 basis (bunny, k = 2000) is cached, plus ~12 min the first time for that
 basis; --x4-basis adds ~15 min and needs ~9.5 GB of memory (docs/benchmarks.md).
 
-Usage: python bench/run.py [--quick] [--parts exact,spectral,live,fig8,remesh] [--x4-basis]
+Usage: python bench/run.py [--quick] [--parts exact,oneshot,spectral,live,fig8,remesh] [--x4-basis]
 """
 from __future__ import annotations
 
@@ -38,11 +41,12 @@ sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 import exact_solver  # noqa: E402
 import fig8  # noqa: E402
+import one_shot  # noqa: E402
 import remesh  # noqa: E402
 import spectral  # noqa: E402
 from paper import FIG8_THRESHOLD, TABLE1, paper_row  # noqa: E402
 
-PARTS = ("exact", "spectral", "live", "fig8", "remesh")
+PARTS = ("exact", "oneshot", "spectral", "live", "fig8", "remesh")
 
 
 def run_live(quick: bool) -> dict:
@@ -64,9 +68,11 @@ def pair(a: float | None, b: float | None) -> str:
     return f"{f(a)} \\ {f(b)}" if a is not None or b is not None else "-"
 
 
-def combined_rows(exact: dict | None, spec: dict | None) -> list[dict]:
+def combined_rows(exact: dict | None, spec: dict | None, oneshot: dict | None = None) -> list[dict]:
     """One row per mesh: our figures and the paper's row (same model or similar size)."""
     by_mesh: dict[str, dict] = {}
+    for r in (oneshot or {}).get("results", []):
+        by_mesh.setdefault(r["mesh"], {"mesh": r["mesh"], "faces": r["faces"]})["one_shot"] = r["rows"]
     for r in (exact or {}).get("results", []):
         by_mesh.setdefault(r["mesh"], {"mesh": r["mesh"], "faces": r["faces"]})["exact"] = r
     for r in (spec or {}).get("results", []):
@@ -74,6 +80,8 @@ def combined_rows(exact: dict | None, spec: dict | None) -> list[dict]:
     rows = []
     for row in sorted(by_mesh.values(), key=lambda r: r["faces"]):
         out = {"mesh": row["mesh"], "faces": row["faces"]}
+        if row.get("one_shot"):
+            out["one_shot"] = row["one_shot"]
         s, e = row.get("spectral"), row.get("exact")
         if s:
             out["k"] = s["k"]
@@ -172,11 +180,21 @@ def markdown(doc: dict) -> str:
                    f"{pair(r['update_and_field_harmonic_s'], r['update_and_field_biharmonic_s'])} | "
                    f"{pair(r['reconstruction_double_s'], r['reconstruction_single_s'])} |" for r in extra]
             md.append("")
+    if doc.get("oneshot"):
+        md += ["## One-shot rows", "", one_shot.table(doc["oneshot"]["results"]), "",
+               "One-shot: `nfield.core.solve` end to end (mesh loaded; operators, constraints, solve, unit field, 3D "
+               "directions, energy, singularities) with 30 random hard constraints and no alignment. Factorization: "
+               "the bare `ExactSolver` construction of the same system. Ratio: one-shot / factorization per repeat, "
+               "median. Live first solve: a DesignSession with its factorization done gets 30 new constraints and "
+               "solves (details=False). Details: one_shot.md.", ""]
     if doc.get("spectral"):
         md += ["## float32 vs double basis", "", spectral.precision_table(doc["spectral"]["results"]), ""]
     if doc.get("targets"):
         md += ["## Issue targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
         for c in doc["targets"]:
+            if "ratio" in c:
+                md.append(f"| {c['what']} | {c['ratio']:.2f} | <= {c['target_ratio']} | {'yes' if c['met'] else 'NO'} |")
+                continue
             extra = f" ({common.fmt_ms(c['cpu_s'])} CPU)" if "cpu_s" in c else ""
             md.append(f"| {c['what']} | {common.fmt_ms(c['value_s'])}{extra} | < {common.fmt_ms(c['target_s'])} | "
                       f"{'yes' if c['met'] else 'NO'} |")
@@ -224,6 +242,9 @@ def main() -> int:
         meshes = exact_solver.QUICK_MESHES if args.quick else exact_solver.MESHES
         doc["exact"] = exact_solver.run(meshes, 1 if args.quick else 3,
                                         "exact_solver_quick" if args.quick else "exact_solver")
+    if "oneshot" in parts:
+        doc["oneshot"] = one_shot.run(one_shot.QUICK_MESHES if args.quick else one_shot.MESHES, 1 if args.quick else 3,
+                                      "one_shot_quick" if args.quick else "one_shot")
     if "spectral" in parts:
         meshes = list(spectral.QUICK_MESHES if args.quick else spectral.MESHES)
         if args.x4_basis:
@@ -238,8 +259,9 @@ def main() -> int:
     if "remesh" in parts:
         meshes = remesh.QUICK_MESHES if args.quick else remesh.MESHES
         doc["remesh"] = remesh.run(meshes, 5000, False, "remesh_quick" if args.quick else "remesh")
-    doc["table1"] = combined_rows(doc.get("exact"), doc.get("spectral"))
-    doc["targets"] = (doc.get("spectral") or {}).get("targets", []) + (doc.get("live") or {}).get("targets", [])
+    doc["table1"] = combined_rows(doc.get("exact"), doc.get("spectral"), doc.get("oneshot"))
+    doc["targets"] = ((doc.get("spectral") or {}).get("targets", []) + (doc.get("oneshot") or {}).get("targets", [])
+                      + (doc.get("live") or {}).get("targets", []))
     for c in doc["targets"]:  # live_session reports ms; make every target seconds
         if "median_ms" in c:
             c["value_s"], c["target_s"] = c.pop("median_ms") / 1000, c.pop("target_ms") / 1000

@@ -206,3 +206,93 @@ def test_random_designs_without_excluded_faces_solve(design):
             f"unexpected ValueError: {exc}"
         return
     _check(mesh, params, dirs, vecs, sings, result)
+
+
+# ============================================================ first-order optimality of random clean designs
+@st.composite
+def clean_designs(draw):
+    """A mesh without excluded faces (so unknown = face): a bent or flat grid (boundary), a cylinder
+    (developable, open) or a bumpy sphere (closed); n, order 1..4, alignment, and 1..6 hard constraints of one
+    kind (n-vector spline) or mixed (n-direction spline), at distinct random faces."""
+    family = draw(st.sampled_from(["bent", "flat", "cylinder", "sphere"]))
+    seed = draw(st.integers(0, 2**31 - 1))
+    if family in ("bent", "flat"):
+        V, F = mg.grid(draw(st.integers(3, 8)), draw(st.integers(3, 8)), random_diagonals=True, seed=seed)
+        V = V.copy()
+        if family == "bent":
+            V[:, 2] = draw(st.floats(0.2, 1.5)) * np.sin(2.0 * V[:, 0]) * np.cos(1.5 * V[:, 1])
+    elif family == "cylinder":
+        V, F = mg.cylinder(1.0, 2.0, draw(st.integers(5, 10)), draw(st.integers(3, 6)), random_diagonals=True,
+                           seed=seed)
+    else:
+        V, F = mg.bumpy_sphere(1, amplitude=draw(st.floats(0.0, 0.3)), seed=seed)
+    mesh = core.Mesh(V, F)
+    n = draw(st.sampled_from([1, 2, 4]))
+    order = draw(st.integers(1, 4))
+    align = draw(st.sampled_from(["none", "curvature-max"] if n % 2 == 0 and family in ("bent", "sphere")
+                                 else ["none"]))
+    strength = draw(st.sampled_from([0.1, 1.0, 30.0]))
+    k = draw(st.integers(1, min(6, len(F))))
+    faces = draw(st.lists(st.integers(0, len(F) - 1), unique=True, min_size=k, max_size=k))
+    normals = np.asarray(mesh.native.face_normals)
+    vector_kind = draw(st.booleans())
+    dirs, vecs = [], []
+    for f in faces:
+        a = draw(st.floats(0, 2 * np.pi))
+        nrm = normals[f]
+        t = np.cross(nrm, [0.3, 0.5, 0.7]) if abs(nrm @ [0.3, 0.5, 0.7]) < 0.99 * np.linalg.norm([0.3, 0.5, 0.7]) \
+            else np.cross(nrm, [1.0, 0.0, 0.0])
+        t /= np.linalg.norm(t)
+        d = np.cos(a) * t + np.sin(a) * np.cross(nrm, t)
+        if vector_kind or draw(st.integers(0, 3)) == 0:
+            vecs.append(core.VectorConstraint(f, tuple(d * draw(st.floats(0.2, 3.0)))))
+        else:
+            dirs.append(core.DirectionConstraint(f, tuple(d)))
+    return mesh, dict(n=n, order=order, align=align, strength=strength), dirs, vecs
+
+
+# conftest.stationarity_residual is a normwise backward error: ~1e-16 for these solves; the issue's bounds.
+OPTIMALITY_TOL = {1: 1e-10, 2: 1e-10, 3: 1e-8, 4: 1e-8}
+
+
+@PROFILE
+@given(clean_designs())
+def test_random_splines_are_optimal_and_live_agrees(design):
+    """nfield.core.solve (one-shot: vector constraints substituted) returns a field that meets its vector
+    constraints exactly and its direction constraints along +d, and satisfies the first-order conditions of
+    eq. 8 / eq. 12 at every free face (conftest.stationarity_residual within OPTIMALITY_TOL). A DesignSession
+    (live solver: Schur rows, cached columns, anchors for lambda = 0) gives the same field: to 1e-8 relative
+    at orders 1-2, 1e-6 at orders 3-4 (cond(V) reaches 1e10-1e12 on these meshes at order 4, and the live
+    column route carries ~1e-2 cond(V) eps, test_splines.py)."""
+    from conftest import stationarity_residual
+
+    mesh, params, dirs, vecs = design
+    res = core.solve(mesh, constraints=dirs, vector_constraints=vecs, **params)
+    n, order = params["n"], params["order"]
+    ops = nat.FieldOperators(mesh.native, n, "geometric")
+    w = np.asarray(res.raw_solution)
+    assert np.isfinite(w).all()
+    for c in vecs:
+        z = complex(np.asarray(ops.tangent_to_representation(np.array([c.face]), np.array([c.vector])))[0])
+        assert w[c.face] == z
+    for c in dirs:
+        z = complex(np.asarray(ops.tangent_to_representation(np.array([c.face]), np.array([c.direction])))[0])
+        assert abs((np.conj(z) * w[c.face]).imag) <= TOL * abs(z * w[c.face]) and (np.conj(z) * w[c.face]).real > 0
+    kind = "vector" if vecs and not dirs else "direction"
+    u = np.zeros(len(w), complex)
+    if params["align"] != "none":
+        u = np.asarray(nat.alignment_field(ops, params["align"]), dtype=np.complex128)
+    mass = np.asarray(ops.mass)
+    rhs = (-res.lambda_ if kind == "vector" else 1.0) * mass * u
+    free = np.setdiff1d(np.arange(len(w)), [c.face for c in dirs + vecs])
+    if free.size:
+        resid = stationarity_residual(ops, order, res.lambda_, w, rhs, free)
+        assert resid < OPTIMALITY_TOL[order], resid
+    s = core.DesignSession(mesh, **params)
+    for c in dirs:
+        s.set_direction(c.face, c.direction)
+    for c in vecs:
+        s.set_vector(c.face, c.vector)
+    live = np.asarray(s.solve(details=False).raw_solution)
+    tol = 1e-8 if order <= 2 else 1e-6
+    assert np.abs(live - w).max() <= tol * np.abs(w).max(), (np.abs(live - w).max() / np.abs(w).max(), kind)

@@ -37,6 +37,21 @@ std::vector<std::pair<int, Complex>> frozen_faces_of(const FieldOperators& ops, 
   return frozen;
 }
 
+/// Face indices of the substituted vector constraints (ExactSolver anchors), validated against the mesh.
+std::vector<int> anchor_faces_of(const FieldOperators& ops, const py::object& anchor_faces) {
+  std::vector<int> anchors;
+  if (anchor_faces.is_none()) return anchors;
+  const IndexArray faces = anchor_faces.cast<IndexArray>();
+  if (faces.ndim() != 1) throw InputError("anchor_faces must be a 1-D array of face indices");
+  for (py::ssize_t i = 0; i < faces.shape(0); ++i) {
+    const long long f = faces.data()[i];
+    if (f < 0 || f >= ops.mesh().num_faces())
+      throw ConstraintError("anchor face " + std::to_string(f) + " is out of range");
+    anchors.push_back(static_cast<int>(f));
+  }
+  return anchors;
+}
+
 }  // namespace
 
 void bind_solvers(py::module_& m) {
@@ -48,21 +63,27 @@ void bind_solvers(py::module_& m) {
   py::class_<ExactSolver>(m, "ExactSolver", py::module_local(), "Exact n-field spline solver with cached factorization")
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
                        const std::string& kind, double lambda_override, const py::object& progress,
-                       const py::object& frozen_faces, const py::object& frozen_values) {
+                       const py::object& frozen_faces, const py::object& frozen_values, const py::object& anchor_faces,
+                       bool cache_columns) {
              const ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
              const PythonProgress cb = wrap_progress(progress);
              const std::vector<std::pair<int, Complex>> frozen = frozen_faces_of(*ops, frozen_faces, frozen_values);
+             const std::vector<int> anchors = anchor_faces_of(*ops, anchor_faces);
              return run_with_progress(cb, [&] {
-               return without_gil(
-                   [&] { return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, frozen); });
+               return without_gil([&] {
+                 return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, frozen, anchors,
+                                        cache_columns);
+               });
              });
            }),
            py::arg("ops"), py::arg("order") = 2, py::arg("strength") = 1.0, py::arg("alignment") = py::none(),
            py::arg("kind") = "direction", py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN(),
            py::arg("progress") = py::none(), py::arg("frozen_faces") = py::none(),
-           py::arg("frozen_values") = py::none(),
-           "Factor V = E_order - lambda M over the faces that are not frozen (frozen faces keep their values)")
+           py::arg("frozen_values") = py::none(), py::arg("anchor_faces") = py::none(),
+           py::arg("cache_columns") = true,
+           "Factor V = E_order - lambda M over the faces that are neither frozen (they keep their values) nor anchors "
+           "(faces whose vector constraints are substituted); cache_columns=False: a one-shot solver")
       .def("set_direction_constraint", &ExactSolver::set_direction_constraint, py::arg("face"), py::arg("d"))
       .def("set_vector_constraint", &ExactSolver::set_vector_constraint, py::arg("face"), py::arg("value"))
       .def("remove_constraint", &ExactSolver::remove_constraint, py::arg("face"))
@@ -76,6 +97,11 @@ void bind_solvers(py::module_& m) {
       .def_property_readonly("num_constraints", [](const ExactSolver& s) { return s.constraints().size(); })
       .def_property_readonly("num_cached_columns", &ExactSolver::num_cached_columns)
       .def_property_readonly("num_unknowns", &ExactSolver::num_unknowns)
+      .def_property_readonly("num_factorizations", &ExactSolver::num_factorizations)
+      .def_property_readonly("condition_estimate", &ExactSolver::condition_estimate)
+      .def_property_readonly("anchor_faces", [](const ExactSolver& s) { return from_std(s.anchor_faces()); })
+      .def("needs_refactorization", &ExactSolver::needs_refactorization, py::arg("vector_faces"),
+           "Whether a solve with vector constraints on exactly these faces would refactor (stale anchors)")
       .def("face_frozen", &ExactSolver::face_frozen, py::arg("face"));
 
   py::class_<ReducedSolver>(m, "ReducedSolver", py::module_local(),

@@ -1,5 +1,6 @@
 #include "nfield/operators.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "nfield/errors.hpp"
@@ -32,8 +33,7 @@ FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, 
   const auto& P = m.positions();
   const auto& edges = m.dual_edges();
   edge_weight_.resize(edges.size());
-  std::vector<Eigen::Triplet<Complex>> triplets;
-  triplets.reserve(4 * edges.size());
+  transport_.resize(edges.size());
   for (size_t e = 0; e < edges.size(); ++e) {
     const DualEdge& d = edges[e];
     double w = 1.0;
@@ -42,22 +42,45 @@ FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, 
       w = 3.0 * l2 / (m.face_area(d.face0) + m.face_area(d.face1));
     }
     edge_weight_[e] = w;
-    const int a = unknown_of_face_[d.face0], b = unknown_of_face_[d.face1];
-    const Complex r = transport(static_cast<int>(e));
-    // w |r z_a - z_b|^2 = w (|z_a|^2 + |z_b|^2) - w conj(z_b) r z_a - w conj(z_a) conj(r) z_b
-    triplets.emplace_back(a, a, w);
-    triplets.emplace_back(b, b, w);
-    triplets.emplace_back(b, a, -w * r);
-    triplets.emplace_back(a, b, -w * std::conj(r));
+    transport_[e] = connection_.transport(static_cast<int>(e), n_);
+  }
+  // S column by column (compressed storage written directly: the assembly is part of every solve from scratch).
+  // w |r z_a - z_b|^2 = w (|z_a|^2 + |z_b|^2) - w conj(z_b) r z_a - w conj(z_a) conj(r) z_b  (a = face0, b = face1):
+  // column a holds -w r in row b, column b holds -w conj(r) in row a, both diagonals w.
+  std::vector<int> start(N + 1, 0);
+  std::vector<std::pair<int, Complex>> entries;
+  entries.reserve(N + 2 * edges.size());
+  std::vector<std::pair<int, Complex>> column;
+  for (int a = 0; a < N; ++a) {
+    const int f = face_of_unknown_[a];
+    column.clear();
+    double diagonal = 0.0;
+    for (int e : m.face_dual_edges(f)) {
+      const DualEdge& d = edges[e];
+      const double w = edge_weight_[e];
+      diagonal += w;
+      if (d.face0 == f)
+        column.emplace_back(unknown_of_face_[d.face1], -w * transport_[e]);
+      else
+        column.emplace_back(unknown_of_face_[d.face0], -w * std::conj(transport_[e]));
+    }
+    column.emplace_back(a, Complex(diagonal, 0.0));
+    std::sort(column.begin(), column.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    for (const auto& [row, value] : column) {
+      if (!entries.empty() && static_cast<int>(entries.size()) > start[a] && entries.back().first == row)
+        entries.back().second += value;  // two dual edges between the same faces (never on a clean mesh)
+      else
+        entries.emplace_back(row, value);
+    }
+    start[a + 1] = static_cast<int>(entries.size());
   }
   harmonic_.resize(N, N);
-  harmonic_.setFromTriplets(triplets.begin(), triplets.end());
-  harmonic_.makeCompressed();
-}
-
-Complex FieldOperators::transport(int e, int from_face) const {
-  const Complex r = transport(e);
-  return mesh_->dual_edges()[e].face0 == from_face ? r : std::conj(r);
+  harmonic_.resizeNonZeros(static_cast<Eigen::Index>(entries.size()));
+  std::copy(start.begin(), start.end(), harmonic_.outerIndexPtr());
+  for (size_t k = 0; k < entries.size(); ++k) {
+    harmonic_.innerIndexPtr()[k] = entries[k].first;
+    harmonic_.valuePtr()[k] = entries[k].second;
+  }
 }
 
 ComplexSparse FieldOperators::energy_matrix(int order) const {

@@ -12,7 +12,7 @@ namespace nfield {
 ReducedSolver::ReducedSolver(std::shared_ptr<const FieldOperators> ops, std::shared_ptr<const SpectralBasis> basis,
                              int order, double strength, const ComplexVector& alignment, SplineKind kind,
                              double lambda_override)
-    : ops_(std::move(ops)), basis_(std::move(basis)), order_(order), kind_(kind) {
+    : ConstraintEditor(std::move(ops)), basis_(std::move(basis)), order_(order), kind_(kind) {
   if (!ops_ || !basis_) throw ParameterError("reduced solver needs operators and a spectral basis");
   if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
   const FieldOperators& o = *ops_;
@@ -24,7 +24,9 @@ ReducedSolver::ReducedSolver(std::shared_ptr<const FieldOperators> ops, std::sha
   if (std::isfinite(lambda_override))
     set_lambda(lambda_override);
   else if (kind == SplineKind::Vector && !has_alignment_)
-    update_lambda(-kVectorRegularisation * o.eigenvalue_unit(order));
+    update_lambda(nu_m_.minCoeff() > kReducedFlatTolerance * o.eigenvalue_unit(order)
+                      ? 0.0
+                      : -kReducedVectorRegularisation * o.eigenvalue_unit(order));
   else
     update_lambda(strength_to_lambda(o, order, strength));
 }
@@ -57,36 +59,9 @@ void ReducedSolver::set_alignment(const ComplexVector& alignment) {
     if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
     for (int u = 0; u < N; ++u) alignment_[u] = alignment[o.face_of_unknown(u)];
   }
-  double sum = 0;
-  int count = 0;
-  for (int u = 0; u < N; ++u)
-    if (std::abs(alignment_[u]) > 0) sum += std::norm(alignment_[u]), ++count;
-  spike_ = 100.0 * (count ? std::sqrt(sum / count) : 1.0);
+  spike_ = safeguard_spike(alignment_);
   projected_ = has_alignment_ ? basis_->project(alignment_) : ComplexVector::Zero(basis_->size());
 }
-
-void ReducedSolver::check_face(int face) const { require_constrainable_face(ops_->mesh(), face); }
-
-void ReducedSolver::set_direction_constraint(int face, Complex d) {
-  check_face(face);
-  constraints_.set_direction(face, d);
-}
-
-void ReducedSolver::set_vector_constraint(int face, Complex value) {
-  check_face(face);
-  constraints_.set_vector(face, value);
-}
-
-void ReducedSolver::remove_constraint(int face) { constraints_.remove_face(face); }
-
-void ReducedSolver::set_singularity(int vertex, int numerator) {
-  auto rows = singularity_constraint_rows(*ops_, vertex, numerator);  // validates
-  constraints_.set_singularity(vertex, numerator, std::move(rows));
-}
-
-void ReducedSolver::remove_singularity(int vertex) { constraints_.remove_singularity(vertex); }
-
-void ReducedSolver::clear_constraints() { constraints_ = ConstraintSet{}; }
 
 const ComplexVector& ReducedSolver::basis_row(int face) {
   auto it = rows_.find(face);
@@ -125,22 +100,8 @@ ComplexVector ReducedSolver::schur_solve(const std::vector<ConstraintRow>& rows,
   Eigen::VectorXd rhs(R), h(R);
   for (int r = 0; r < R; ++r) h[r] = rows[r].rhs;
   rhs = (G.adjoint() * y).real() - h;
-  Eigen::VectorXd gamma;
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(K);
-  const Eigen::VectorXd diag = ldlt.vectorD().cwiseAbs();
-  const double kmax = std::max(diag.maxCoeff(), 1e-300);
-  if (ldlt.info() == Eigen::Success && diag.minCoeff() > 1e-11 * kmax) {
-    gamma = ldlt.solve(rhs);
-  } else {
-    // Rows dependent in the basis: least squares (pseudo-inverse).
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(K);
-    const Eigen::VectorXd ev = es.eigenvalues();
-    const double emax = std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
-    const Eigen::VectorXd q = es.eigenvectors().transpose() * rhs;
-    gamma = Eigen::VectorXd::Zero(R);
-    for (int i = 0; i < R; ++i)
-      if (ev[i] > 1e-10 * emax) gamma += es.eigenvectors().col(i) * (q[i] / ev[i]);
-  }
+  // Rows dependent in the basis: least squares (the residual below reports it).
+  const Eigen::VectorXd gamma = solve_constraint_system(K, rhs).gamma;
   ComplexVector x = y - LG * gamma.cast<Complex>();
   // Constraint violation, relative to the largest value at a constrained face.
   const Eigen::VectorXd l = (G.adjoint() * x).real();
@@ -166,7 +127,7 @@ ComplexVector ReducedSolver::solve_coefficients() {
     if (c.kind == ConstraintSet::Kind::Direction) {
       const int u = o.unknown_of_face(f);
       const double area = o.mass()[u];
-      const Complex delta = spike_ * (mean_area / area) * c.value - alignment_[u];
+      const Complex delta = safeguard_delta(spike_, mean_area, area, c.value, alignment_[u]);
       bU += (rhs_scale * area * delta) * basis_row(f);
       has_data = true;
     } else if (std::abs(c.value) > 0) {

@@ -39,10 +39,13 @@ bool ring_index_numerator(const FieldOperators& ops, const ComplexVector& field,
   if (faces.empty()) return false;
   const auto& edges = mesh.vertex_ring_dual_edges(v);
   const size_t k = faces.size();
+  for (int f : faces) {  // a zero or non-finite value on the ring: no index (checked once per face, cheaply)
+    const Complex z = field[f];
+    if (z == 0.0 || !std::isfinite(z.real()) || !std::isfinite(z.imag())) return false;
+  }
   double sum = 0.0;
   for (size_t j = 0; j < k; ++j) {
     const Complex a = field[faces[j]], b = field[faces[(j + 1) % k]];
-    if (a == 0.0 || b == 0.0 || !std::isfinite(std::abs(a)) || !std::isfinite(std::abs(b))) return false;
     sum += std::arg(b * std::conj(ops.transport(edges[j], faces[j]) * a));
   }
   const double turns = (sum + ring_holonomy_angle(ops, v)) / (2.0 * M_PI);

@@ -7,7 +7,12 @@ warm between edits:
   alignment, strength, frozen faces) and caches V^-1 e_f for every constrained face. Re-aiming an existing
   constraint (the drag in the UI) then costs no sparse solve (only the small Schur system, eqs. 13-14);
   a constraint on a new face costs one complex back-substitution (both real columns at once); removing a
-  constraint costs nothing. Changing n, order, alignment or strength refactors (lazily, on the next solve).
+  constraint costs nothing. A solve that brings many new faces at once (more than four: a loaded design)
+  solves directly (a forward substitution along each face's elimination-tree path, then one solve) and the
+  next solve without new faces computes their columns in one block. Changing n, order, alignment or strength refactors (lazily, on the
+  next solve). An n-vector spline without alignment (lambda = 0, the paper's eq. 8 exactly) substitutes the
+  vector constraints present when it factors ("anchors": what keeps V positive definite on flat and
+  developable meshes); removing one of them refactors, adding others does not.
 
 * Local editing (paper section 9) and the way back. ``begin_region(faces)`` freezes every other face at
   its current value: the next solves factor only the region (the energy's stencil reaches the frozen
@@ -393,7 +398,9 @@ class DesignSession:
             return None if self.basis_available() else "basis"
         if self._ops_key != (s["n"], s["weights"]) or self._solver is None:
             return "factorization"
-        return None if self._exact_key(kind, frozen_key) == self._solver_key else "factorization"
+        if self._exact_key(kind, frozen_key) != self._solver_key:
+            return "factorization"
+        return "factorization" if self._solver.needs_refactorization(self._vector_triangles(_vecs)) else None
 
     def _solve_inputs(self):
         """(frozen triangles, values, key, direction, vector and singularity constraints outside them, kind)."""
@@ -420,14 +427,22 @@ class DesignSession:
             return 0.0
         return float(self._reduced.constraint_residual)
 
+    def _vector_triangles(self, vecs: dict) -> list[int]:
+        return sorted(int(self.mesh.face_triangle(f)) for f in vecs)
+
     def _solve_exact(self, ops, kind, dirs, vecs, sings, frozen_tris, frozen_values, frozen_key):
         s = self._settings
         key = self._exact_key(kind, frozen_key)
-        if self._solver is None or key != self._solver_key:
+        vec_tris = self._vector_triangles(vecs)
+        if self._solver is None or key != self._solver_key or self._solver.needs_refactorization(vec_tris):
+            # lambda = 0 (n-vector spline without alignment): the vector constraints are the anchors that keep
+            # V positive definite on flat meshes (spline_solver.hpp); otherwise no anchors (none needed).
+            anchored = kind == "vector" and s["align"] == "none"
             solver = native().ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
                                           progress=self.progress,
                                           frozen_faces=frozen_tris if frozen_tris.size else None,
-                                          frozen_values=frozen_values if frozen_tris.size else None)
+                                          frozen_values=frozen_values if frozen_tris.size else None,
+                                          anchor_faces=np.asarray(vec_tris, dtype=np.int64) if anchored else None)
             # Only replace the old solver once the new one exists: a failed or cancelled factorization
             # leaves the session as it was.
             self._solver, self._solver_key = solver, key

@@ -268,18 +268,13 @@ def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, s
             details: bool = True, mode: str = "exact", basis_size: int | None = None) -> FieldResult:
     """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
     nat = native()
-    if details:
-        all_tri = np.asarray(ops.representation_to_directions(u), dtype=np.float64)  # (T, n, 3)
-        all_faces = mesh.per_face(all_tri)
-        first = np.ascontiguousarray(all_faces[:, 0, :])
-    else:
-        # Live path: only the first direction, from the frames (the n-fold set on demand).
-        frames = _frames(ops)
-        angle = np.angle(u) / n
-        first_tri = np.cos(angle)[:, None] * frames[:, 0] + np.sin(angle)[:, None] * frames[:, 1]
-        first_tri[np.abs(u) == 0] = 0.0
-        first = np.ascontiguousarray(mesh.per_face(first_tri))
-        all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
+    # The first direction from the frames; the n-fold set on demand (all_directions()).
+    frames = _frames(ops)
+    angle = np.angle(u) / n
+    first_tri = np.cos(angle)[:, None] * frames[:, 0] + np.sin(angle)[:, None] * frames[:, 1]
+    first_tri[np.abs(u) == 0] = 0.0
+    first = np.ascontiguousarray(mesh.per_face(first_tri))
+    all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
     energy = float(ops.energy(u, order)) if details else float("nan")
     sings = None
     if details:
@@ -358,7 +353,11 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
         alignment[idx] = np.asarray(ops.tangent_to_representation(idx, np.ascontiguousarray(per_tri[idx])))
 
     kind = "vector" if vecs and not dirs else "direction"
-    solver = nat.ExactSolver(ops, order, strength, alignment, kind)
+    # One-shot solver: vector constraints are substituted (anchors), direction constraints and singularities go
+    # through the Schur system without cached columns: one factorization and one or two solves.
+    solver = nat.ExactSolver(ops, order, strength, alignment, kind,
+                             anchor_faces=np.asarray(v_tris, dtype=np.int64) if len(vecs) else None,
+                             cache_columns=False)
 
     if len(dirs):
         zd = np.asarray(ops.tangent_to_representation(d_tris, d_vecs), dtype=np.complex128)

@@ -43,10 +43,12 @@ class FieldOperators {
   int unknown_of_face(int f) const { return unknown_of_face_[f]; }
   int face_of_unknown(int u) const { return face_of_unknown_[u]; }
 
-  /// r_e = exp(i n (a1 - a0)) for dual edge e (face0 -> face1).
-  Complex transport(int e) const { return connection_.transport(e, n_); }
+  /// r_e = exp(i n (a1 - a0)) for dual edge e (face0 -> face1); computed once per operators.
+  Complex transport(int e) const { return transport_[e]; }
   /// Transport from face a to an adjacent face b across dual edge e (r_e or conj(r_e)).
-  Complex transport(int e, int from_face) const;
+  Complex transport(int e, int from_face) const {
+    return mesh_->dual_edges()[e].face0 == from_face ? transport_[e] : std::conj(transport_[e]);
+  }
   double edge_weight(int e) const { return edge_weight_[e]; }
 
   /// Diagonal of M (face areas of active faces, length^2), indexed by unknown.
@@ -74,6 +76,7 @@ class FieldOperators {
   LeviCivitaConnection connection_;
   std::vector<int> unknown_of_face_, face_of_unknown_;
   std::vector<double> edge_weight_;
+  std::vector<Complex> transport_;  ///< r_e per dual edge
   Eigen::VectorXd mass_;
   ComplexSparse harmonic_;
 };

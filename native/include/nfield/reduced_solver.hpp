@@ -3,8 +3,9 @@
 // API (for the binding):
 //   ReducedSolver(ops, basis, order, strength, alignment, kind[, lambda_override])
 //       ops: shared FieldOperators; basis: shared SpectralBasis of the same operators (ParameterError
-//       otherwise); order m in 1..4; strength -> lambda exactly as ExactSolver (strength_to_lambda,
-//       kVectorRegularisation for vector splines without alignment); alignment per face or empty.
+//       otherwise); order m in 1..4; strength -> lambda as ExactSolver (strength_to_lambda; lambda = 0 for
+//       vector splines without alignment, see "Vector splines without alignment" below); alignment per face
+//       or empty.
 //   set_strength(s) / set_lambda(l)    only the k-vector Lambda changes: no factorization, O(k R^2).
 //   set_alignment(field)               one projection U^H M u' (O(N k), ~10-50 ms for N=86k, k=500).
 //   set_direction_constraint(face, d), set_vector_constraint(face, value), remove_constraint(face),
@@ -36,6 +37,11 @@
 // their smoothest field (the restriction of the lowest basis vector living on them), scaled like the
 // rest, as in the exact solver; a component no basis vector reaches (k smaller than the number of
 // components) stays zero and is counted in uncovered_components(). Limits: no frozen faces.
+// Vector splines without alignment: lambda = 0 (eq. 8 exactly, in the basis) when every basis eigenvalue is
+// positive, nu_i^m > kReducedFlatTolerance (4 pi/A)^m. On a mesh whose connection is (nearly) flat the basis
+// holds the parallel field with nu_0 ~ 0 and Lambda would be singular; the exact solver then eliminates the
+// constrained faces (spline_system.hpp), which a basis cannot do, so the reduced solver keeps
+// lambda = -kReducedVectorRegularisation (4 pi/A)^m there: a 1% pull toward zero, far below the reduction error.
 // Measured (bench/results/spectral.md; k = 500, 30 direction constraints, loaded 2-core VM): the reduced
 // update is 0.6-1.8 ms whatever the mesh size (1.1 ms at 346k faces), a strength change 0.6-1.7 ms; the
 // reconstruction U x is memory-bound (it reads the whole basis): 36 ms (float32) / 72 ms (double) for
@@ -47,13 +53,17 @@
 #include <unordered_map>
 #include <vector>
 
+#include "nfield/constraint_system.hpp"
 #include "nfield/constraints.hpp"
 #include "nfield/spectral_basis.hpp"
 #include "nfield/spline_solver.hpp"
 
 namespace nfield {
 
-class ReducedSolver {
+/// See "Vector splines without alignment" above.
+constexpr double kReducedFlatTolerance = 1e-6, kReducedVectorRegularisation = 1e-2;
+
+class ReducedSolver : public ConstraintEditor {
  public:
   ReducedSolver(std::shared_ptr<const FieldOperators> ops, std::shared_ptr<const SpectralBasis> basis, int order,
                 double strength, const ComplexVector& alignment, SplineKind kind,
@@ -73,13 +83,7 @@ class ReducedSolver {
   /// New alignment field per face (size num_faces) or empty: one projection onto the basis.
   void set_alignment(const ComplexVector& alignment);
 
-  void set_direction_constraint(int face, Complex d);
-  void set_vector_constraint(int face, Complex value);
-  void remove_constraint(int face);
-  void set_singularity(int vertex, int numerator);
-  void remove_singularity(int vertex);
-  void clear_constraints();
-  const ConstraintSet& constraints() const { return constraints_; }
+  // Constraint editing: ConstraintEditor (constraint_system.hpp), as for ExactSolver.
 
   /// The reduced solution x (size k): the field is U x.
   ComplexVector solve_coefficients();
@@ -94,7 +98,6 @@ class ReducedSolver {
   int uncovered_components() const { return uncovered_components_; }
 
  private:
-  void check_face(int face) const;
   void fill_empty_components(ComplexVector& field);
   /// Per component: does some basis vector have weight on it (computed once).
   const std::vector<bool>& covered_components();
@@ -104,7 +107,6 @@ class ReducedSolver {
   Complex value_at(const ComplexVector& x, int face);  ///< (U x)_f
   ComplexVector schur_solve(const std::vector<ConstraintRow>& rows, const ComplexVector& y);
 
-  std::shared_ptr<const FieldOperators> ops_;
   std::shared_ptr<const SpectralBasis> basis_;
   int order_;
   SplineKind kind_;
@@ -114,8 +116,7 @@ class ReducedSolver {
   bool has_alignment_ = false;
   ComplexVector alignment_;      ///< per unknown
   ComplexVector projected_;      ///< U^H M u' (without the rhs scale)
-  double spike_ = 100.0;
-  ConstraintSet constraints_;
+  double spike_ = kSafeguardWeight;
   std::unordered_map<int, ComplexVector> rows_;  ///< face -> conj(U[f, :])^T
   std::vector<int> sign_fixed_;
   double constraint_residual_ = 0;

@@ -1,0 +1,204 @@
+#include "nfield/hermitian_factor.hpp"
+
+#include <Eigen/CholmodSupport>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "nfield/errors.hpp"
+#include "nfield/memory_guard.hpp"
+
+namespace nfield {
+
+HermitianFactor::HermitianFactor(const ComplexSparse& matrix, const std::string& what, const std::string& advice)
+    : n_(static_cast<int>(matrix.rows())), matrix_(matrix) {
+  matrix_.makeCompressed();
+  cholmod_start(&common_);
+  common_.supernodal = CHOLMOD_SUPERNODAL;  // BLAS 3 on dense blocks: the fastest factorization and block solves
+  common_.final_asis = 1;                   // keep the supernodal LL^H (forward() reads it)
+  common_.print = 0;                        // failures are reported as exceptions, not printed
+  const ComplexSparse& stored = matrix_;
+  cholmod_sparse view = Eigen::viewAsCholmod(stored.selfadjointView<Eigen::Lower>());
+  factor_ = cholmod_analyze(&view, &common_);
+  if (!factor_ || common_.status < CHOLMOD_OK) {
+    cholmod_finish(&common_);
+    throw SolverError("symbolic analysis of " + what + " failed");
+  }
+  try {
+    // Memory guard: the numeric factor's size is known from the symbolic analysis (nnz of L).
+    const std::size_t bytes = cholesky_factor_bytes(common_.lnz, static_cast<std::size_t>(n_)) +
+                              static_cast<std::size_t>(matrix_.nonZeros()) * (sizeof(Complex) + sizeof(int));
+    require_memory(bytes, what, advice);
+  } catch (...) {
+    cholmod_free_factor(&factor_, &common_);
+    cholmod_finish(&common_);
+    throw;
+  }
+  cholmod_factorize(&view, factor_, &common_);
+  if (common_.status < CHOLMOD_OK || factor_->minor != factor_->n || !factor_->is_super) {
+    const bool not_posdef = factor_->minor != factor_->n;
+    cholmod_free_factor(&factor_, &common_);
+    cholmod_finish(&common_);
+    throw SolverError(not_posdef ? what + " failed: the matrix is not positive definite"
+                                 : what + " failed (CHOLMOD status " + std::to_string(common_.status) + ")");
+  }
+  // Supernodal elimination tree: the parent of a supernode owns its first row below the diagonal block.
+  const int* super = static_cast<const int*>(factor_->super);
+  const int* pi = static_cast<const int*>(factor_->pi);
+  const int* rows = static_cast<const int*>(factor_->s);
+  const int* perm = static_cast<const int*>(factor_->Perm);
+  const int nsuper = static_cast<int>(factor_->nsuper);
+  supernode_of_.assign(n_, 0);
+  parent_.assign(nsuper, -1);
+  for (int s = 0; s < nsuper; ++s)
+    for (int j = super[s]; j < super[s + 1]; ++j) supernode_of_[j] = s;
+  for (int s = 0; s < nsuper; ++s) {
+    const int nscol = super[s + 1] - super[s], nsrow = pi[s + 1] - pi[s];
+    if (nsrow > nscol) parent_[s] = supernode_of_[rows[pi[s] + nscol]];
+  }
+  const int* px = static_cast<const int*>(factor_->px);
+  const Complex* values = static_cast<const Complex*>(factor_->x);
+  double lo = std::numeric_limits<double>::infinity(), hi = 0;
+  for (int s = 0; s < nsuper; ++s) {
+    const int nscol = super[s + 1] - super[s], nsrow = pi[s + 1] - pi[s];
+    for (int j = 0; j < nscol; ++j) {
+      const double d = std::abs(values[px[s] + static_cast<std::ptrdiff_t>(j) * nsrow + j]);
+      lo = std::min(lo, d), hi = std::max(hi, d);
+    }
+  }
+  condition_estimate_ = lo > 0 ? (hi / lo) * (hi / lo) : std::numeric_limits<double>::infinity();
+  inverse_perm_.assign(n_, 0);
+  for (int k = 0; k < n_; ++k) inverse_perm_[perm ? perm[k] : k] = k;
+}
+
+HermitianFactor::~HermitianFactor() {
+  cholmod_free_factor(&factor_, &common_);
+  cholmod_finish(&common_);
+}
+
+Eigen::MatrixXcd HermitianFactor::cholmod_solve_dense(int system, const Eigen::MatrixXcd& B) const {
+  Eigen::MatrixXcd copy = B;  // CHOLMOD's dense view needs a mutable pointer; it does not write to it
+  cholmod_dense view = Eigen::viewAsCholmod(copy);
+  cholmod_dense* x = cholmod_solve(system, factor_, &view, &common_);
+  if (!x) throw SolverError("back-substitution failed (CHOLMOD status " + std::to_string(common_.status) + ")");
+  Eigen::MatrixXcd out = Eigen::Map<const Eigen::MatrixXcd>(static_cast<const Complex*>(x->x), n_, B.cols());
+  cholmod_free_dense(&x, &common_);
+  return out;
+}
+
+Eigen::MatrixXcd HermitianFactor::solve_block(const Eigen::MatrixXcd& B) const {
+  Eigen::MatrixXcd X = cholmod_solve_dense(CHOLMOD_A, B);
+  if (!X.allFinite()) throw SolverError("back-substitution produced non-finite values");
+  return X;
+}
+
+Eigen::MatrixXcd HermitianFactor::extended_residual(const Eigen::MatrixXcd& B, const Eigen::MatrixXcd& X) const {
+  // Row i of the Hermitian V is the conjugate of its stored column i: r_i = b_i - sum_j conj(V_ji) x_j, summed in
+  // long double registers (a gather over x, one pass over V per right-hand side).
+  Eigen::MatrixXcd R(n_, B.cols());
+  const int* outer = matrix_.outerIndexPtr();
+  const int* inner = matrix_.innerIndexPtr();
+  const Complex* value = matrix_.valuePtr();
+  for (Eigen::Index c = 0; c < B.cols(); ++c) {
+    const Complex* x = X.col(c).data();
+    for (int i = 0; i < n_; ++i) {
+      long double re = B(i, c).real(), im = B(i, c).imag();
+      for (int p = outer[i]; p < outer[i + 1]; ++p) {
+        const long double vr = value[p].real(), vi = -value[p].imag();  // conj(V_ji) = V_ij
+        const long double xr = x[inner[p]].real(), xi = x[inner[p]].imag();
+        re -= vr * xr - vi * xi;
+        im -= vr * xi + vi * xr;
+      }
+      R(i, c) = Complex(static_cast<double>(re), static_cast<double>(im));
+    }
+  }
+  return R;
+}
+
+double HermitianFactor::relative_residual(const ComplexVector& b, const ComplexVector& x) const {
+  const double scale = b.cwiseAbs().maxCoeff();
+  if (!(scale > 0)) return x.cwiseAbs().maxCoeff() > 0 ? 1.0 : 0.0;
+  return (b - matrix_ * x).cwiseAbs().maxCoeff() / scale;
+}
+
+ComplexVector HermitianFactor::solve(const ComplexVector& b, int* refinements) const {
+  ComplexVector x = cholmod_solve_dense(CHOLMOD_A, b);
+  int steps = 0;
+  // A cheap test first: well-conditioned systems (curved meshes, moderate order) stop here.
+  if (needs_refinement(b, x)) {
+    while (steps < kMaxRefinements && x.allFinite()) {
+      const ComplexVector correction = cholmod_solve_dense(CHOLMOD_A, extended_residual(b, x));
+      x += correction;
+      ++steps;
+      if (!(correction.cwiseAbs().maxCoeff() > kConverged * x.cwiseAbs().maxCoeff())) break;
+    }
+  }
+  if (!x.allFinite()) throw SolverError("back-substitution produced non-finite values");
+  if (refinements) *refinements = steps;
+  return x;
+}
+
+double HermitianFactor::refine_block(const Eigen::MatrixXcd& B, Eigen::MatrixXcd& X) const {
+  const Eigen::MatrixXcd correction = cholmod_solve_dense(CHOLMOD_A, extended_residual(B, X));
+  X += correction;
+  if (!X.allFinite()) throw SolverError("back-substitution produced non-finite values");
+  return correction.cwiseAbs().maxCoeff() / std::max(X.cwiseAbs().maxCoeff(), 1e-300);
+}
+
+HermitianFactor::Forward HermitianFactor::forward(const std::vector<SparseColumn>& columns) const {
+  const int k = static_cast<int>(columns.size());
+  const int nsuper = static_cast<int>(factor_->nsuper);
+  const int* super = static_cast<const int*>(factor_->super);
+  const int* pi = static_cast<const int*>(factor_->pi);
+  const int* px = static_cast<const int*>(factor_->px);
+  const int* rows = static_cast<const int*>(factor_->s);
+  const Complex* values = static_cast<const Complex*>(factor_->x);
+  Forward out{Eigen::MatrixXcd::Zero(n_, k), Eigen::MatrixXcd::Zero(k, k)};
+  // Which right-hand sides reach each supernode: those with an entry in it or in a descendant.
+  std::vector<std::vector<int>> active(nsuper);
+  std::vector<int> stamp(nsuper, -1);
+  for (int j = 0; j < k; ++j) {
+    for (const auto& [i, v] : columns[j]) {
+      const int row = inverse_perm_.at(i);
+      out.h(row, j) += v;
+      for (int s = supernode_of_[row]; s >= 0 && stamp[s] != j; s = parent_[s]) {
+        stamp[s] = j;
+        active[s].push_back(j);
+      }
+    }
+  }
+  // Supernodes in increasing order (children before parents): solve the diagonal block, update the rows below.
+  Eigen::MatrixXcd X, below;
+  for (int s = 0; s < nsuper; ++s) {
+    const std::vector<int>& J = active[s];
+    if (J.empty()) continue;
+    const int first = super[s], nscol = super[s + 1] - super[s], nsrow = pi[s + 1] - pi[s];
+    const int a = static_cast<int>(J.size());
+    const Eigen::Map<const Eigen::MatrixXcd> block(values + px[s], nsrow, nscol);
+    X.resize(nscol, a);
+    for (int c = 0; c < a; ++c) X.col(c) = out.h.col(J[c]).segment(first, nscol);
+    block.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(X);
+    for (int c = 0; c < a; ++c) out.h.col(J[c]).segment(first, nscol) = X.col(c);
+    const Eigen::MatrixXcd g = X.adjoint() * X;  // these rows of h are final now
+    for (int c1 = 0; c1 < a; ++c1)
+      for (int c2 = 0; c2 < a; ++c2) out.gram(J[c1], J[c2]) += g(c1, c2);
+    if (nsrow > nscol) {
+      below.noalias() = block.bottomRows(nsrow - nscol) * X;
+      for (int r = 0; r < nsrow - nscol; ++r) {
+        const int row = rows[pi[s] + nscol + r];
+        for (int c = 0; c < a; ++c) out.h(row, J[c]) -= below(r, c);
+      }
+    }
+  }
+  if (!out.gram.allFinite()) throw SolverError("forward substitution produced non-finite values");
+  return out;
+}
+
+Eigen::MatrixXcd HermitianFactor::backward(const Eigen::MatrixXcd& h) const {
+  const Eigen::MatrixXcd y = cholmod_solve_dense(CHOLMOD_Lt, h);
+  Eigen::MatrixXcd x = cholmod_solve_dense(CHOLMOD_Pt, y);
+  if (!x.allFinite()) throw SolverError("back-substitution produced non-finite values");
+  return x;
+}
+
+}  // namespace nfield
