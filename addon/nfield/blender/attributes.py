@@ -21,7 +21,7 @@ from ..core import shading
 
 
 def field_arrays(arrays, result, n: int) -> dict:
-    """The three attribute arrays for a FieldResult on the mesh described by `arrays` (session_cache.MeshArrays)."""
+    """The three attribute arrays for a FieldResult on the mesh described by `arrays` (mesh_read.MeshArrays)."""
     poly_dirs = shading.polygon_tangent_directions(np.asarray(result.directions), arrays.polygon_normals)
     tri_dirs = poly_dirs[arrays.triangle_polygon]
     smooth = shading.vertex_smoothed_directions(arrays.vertices, arrays.triangles, tri_dirs, n)

@@ -29,8 +29,11 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 
-from .operators import _NFieldObjectOperator
-from .session_cache import NFieldError
+from ..core import trace_streamlines
+from . import api
+from .errors import NFieldError
+from .material import ensure_nodes
+from .operator_base import NFieldObjectOperator
 
 __all__ = ["build", "strokes_to_object", "density_values", "NFIELD_OT_hatching", "register", "unregister"]
 
@@ -190,8 +193,6 @@ def ink_material(name: str = "nfield Ink", color=(0.02, 0.02, 0.025, 1.0)):
     mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
-    from .material import ensure_nodes
-
     mat = bpy.data.materials.new(name)
     mat.diffuse_color = color
     ensure_nodes(mat)
@@ -208,16 +209,6 @@ def ink_material(name: str = "nfield Ink", color=(0.02, 0.02, 0.025, 1.0)):
 
 
 # ------------------------------------------------------------------------------------------ tracing
-def _tracer():
-    try:
-        from ..core import trace_streamlines
-    except ImportError:
-        trace_streamlines = None
-    if trace_streamlines is None:
-        raise NFieldError("this build of nfield has no streamline tracer (nfield.core.trace_streamlines)")
-    return trace_streamlines
-
-
 def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = False, seed: int = 0,
           max_length: float | None = None, min_length: float | None = None, radius: float | None = None,
           density=None, lift: float = 1.0, name: str | None = None, material=None, legacy: bool | None = None):
@@ -232,17 +223,12 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
     bpy Material for the strokes (default: a dark "nfield Ink" material for a new object). Returns the
     curves object (custom properties nfield_strokes, nfield_points).
     """
-    from . import api, session_cache
-
-    api._check_object(obj)
-    trace = _tracer()
+    api.check_mesh_object(obj)
     sp = float(spacing)
     if not np.isfinite(sp) or sp <= 0:
         raise NFieldError(f"spacing must be > 0 (a fraction of the bounding-box diagonal; got {spacing!r})")
-    arrays, _ = api.sync(obj)
-    entry = session_cache.get_entry(obj, arrays)
+    arrays, entry = api.synced_entry(obj)
     result = entry.result if entry.result is not None else api.solve(obj)
-    entry = session_cache.get_entry(obj, arrays)
     dens = density_values(obj, density)
     if dens is not None:
         dens = np.clip(dens, 0.0, 1.0)  # the tracer takes [0, 1]: d_sep / max(density, 0.1)
@@ -251,7 +237,7 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
     if dens is not None:
         kwargs["density"] = dens
     try:
-        strokes = trace(entry.mesh, result, **kwargs)
+        strokes = trace_streamlines(entry.mesh, result, **kwargs)
     except (ValueError, RuntimeError) as exc:
         raise NFieldError(f"tracing strokes failed: {exc}") from None
     diag = float(np.linalg.norm(arrays.vertices.max(0) - arrays.vertices.min(0)))
@@ -269,7 +255,7 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
 
 
 # ------------------------------------------------------------------------------------------ operator
-class NFIELD_OT_hatching(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_hatching(NFieldObjectOperator, bpy.types.Operator):
     """Trace evenly spaced strokes along the field and write them as a curves object parented to the mesh
     (render with Cycles or convert to Grease Pencil)"""
 
