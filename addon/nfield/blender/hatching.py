@@ -30,7 +30,7 @@ import numpy as np
 from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 
 from ..core import trace_streamlines
-from . import api
+from . import api, mesh_read
 from .errors import NFieldError
 from .material import ensure_nodes
 from .operator_base import NFieldObjectOperator
@@ -56,27 +56,15 @@ def density_values(obj, density) -> np.ndarray | None:
     me = obj.data
     nv = len(me.vertices)
     if isinstance(density, str):
-        vg = obj.vertex_groups.get(density)
-        if vg is not None:
-            out = np.zeros(nv, dtype=np.float64)
-            gi = vg.index
-            for v in me.vertices:
-                for g in v.groups:
-                    if g.group == gi:
-                        out[v.index] = g.weight
-                        break
-            return out
+        weights = mesh_read.vertex_group_weights(obj, density)
+        if weights is not None:
+            return weights
         attr = me.attributes.get(density)
         if attr is not None:
             if attr.domain != "POINT" or attr.data_type not in ("FLOAT", "INT", "BOOLEAN"):
                 raise NFieldError(f"density attribute '{density}' must be a point FLOAT attribute "
                                   f"(it is {attr.domain.lower()} {attr.data_type})")
-            if attr.data_type == "FLOAT":
-                buf = np.empty(nv, dtype=np.float32)
-                attr.data.foreach_get("value", buf)
-            else:
-                buf = np.array([d.value for d in attr.data], dtype=np.float32)
-            return buf.astype(np.float64)
+            return mesh_read.attribute_values(obj, density, "POINT", attr.data_type)
         groups = [g.name for g in obj.vertex_groups]
         attrs = [a.name for a in me.attributes if a.domain == "POINT" and a.data_type == "FLOAT"
                  and not a.name.startswith(".")]
@@ -116,12 +104,7 @@ def strokes_to_object(obj, points: Sequence, *, faces=None, family=None, radius:
     legacy: force the legacy Curve type (None: the new Curves type where available). Returns the object."""
     if radius <= 0 or not np.isfinite(radius):
         raise NFieldError(f"stroke radius must be > 0 (got {radius!r})")
-    normals = None
-    if faces is not None and lift:
-        me = obj.data
-        normals = np.empty(len(me.polygons) * 3, dtype=np.float32)
-        me.polygons.foreach_get("normal", normals)
-        normals = normals.reshape(-1, 3).astype(np.float64)
+    normals = mesh_read.mesh_arrays(obj).polygon_normals if faces is not None and lift else None
     pts, keep = _stroke_arrays(points, faces, normals, float(radius), float(lift))
     fam = np.zeros(len(pts), dtype=np.int32)
     if family is not None:
@@ -242,16 +225,12 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
         raise NFieldError(f"tracing strokes failed: {exc}") from None
     diag = float(np.linalg.norm(arrays.vertices.max(0) - arrays.vertices.min(0)))
     r = float(radius) if radius else 0.1 * sp * diag
-    points = list(getattr(strokes, "points", strokes))
-    faces = getattr(strokes, "faces", None)  # per-point triangles of the core mesh -> polygons
-    if faces is not None:
-        tri_poly = np.asarray(entry.mesh.triangle_face, dtype=np.int64)
-        faces = [tri_poly[np.asarray(f, dtype=np.int64)] for f in faces]
-    fam = getattr(strokes, "families", None)
+    tri_poly = np.asarray(entry.mesh.triangle_face, dtype=np.int64)  # per-point triangles -> polygons
+    faces = [tri_poly[np.asarray(f, dtype=np.int64)] for f in strokes.faces]
     if material is None and bpy.data.objects.get(name or f"{obj.name} Hatching") is None:
         material = ink_material()
-    return strokes_to_object(obj, points, faces=faces, family=fam, radius=r, lift=lift, name=name,
-                             material=material, legacy=legacy)
+    return strokes_to_object(obj, strokes.points, faces=faces, family=strokes.families, radius=r, lift=lift,
+                             name=name, material=material, legacy=legacy)
 
 
 # ------------------------------------------------------------------------------------------ operator

@@ -13,7 +13,7 @@ triangulation and the per-polygon geometry are cached per object and reused whil
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from mathutils.bvhtree import BVHTree
@@ -22,7 +22,8 @@ from ..core import Mesh
 from .errors import NFieldError
 
 __all__ = ["MeshArrays", "OverlayGeometry", "check_mesh_object", "mesh_arrays", "topology_of", "core_mesh",
-           "read_face_vectors", "selected_polygons", "bvh", "overlay_geometry", "forget"]
+           "attribute_values", "read_face_vectors", "vertex_group_weights", "polygon_vertices", "selected_polygons",
+           "bvh", "overlay_geometry", "forget"]
 
 
 @dataclass
@@ -51,7 +52,6 @@ class OverlayGeometry:
     edge_len: np.ndarray    # (P,) mean length of the polygon's edges
     positions: np.ndarray   # (V, 3)
     vnormals: np.ndarray    # (V, 3) Blender's vertex normals
-    samples: dict = field(default_factory=dict)  # the overlay's glyph samples, cached with the geometry
 
 
 # object name -> cached data of its last read (dropped by forget())
@@ -198,6 +198,29 @@ def core_mesh(arrays: MeshArrays) -> Mesh:
         raise NFieldError(f"the mesh cannot be used: {exc}") from None
 
 
+# ------------------------------------------------------------------------------------------ attributes
+_DOMAIN_SIZE = {"FACE": "polygons", "POINT": "vertices"}
+
+
+def attribute_values(obj, name: str, domain: str, data_type: str) -> np.ndarray | None:
+    """The attribute `name` of the base mesh as float64, (count, 3) for FLOAT_VECTOR and (count,) for FLOAT,
+    INT or BOOLEAN; None if there is none of that domain ("FACE" or "POINT") and type."""
+    me = obj.data
+    attr = me.attributes.get(name) if name else None
+    if attr is None or attr.domain != domain or attr.data_type != data_type:
+        return None
+    count = len(getattr(me, _DOMAIN_SIZE[domain]))
+    if data_type == "FLOAT_VECTOR":
+        buf = np.empty(count * 3, dtype=np.float32)
+        attr.data.foreach_get("vector", buf)
+        return buf.reshape(count, 3).astype(np.float64)
+    if data_type == "FLOAT":
+        buf = np.empty(count, dtype=np.float32)
+        attr.data.foreach_get("value", buf)
+        return buf.astype(np.float64)
+    return np.array([d.value for d in attr.data], dtype=np.float64)
+
+
 def read_face_vectors(obj, name: str, num_faces: int) -> np.ndarray:
     """A face-domain FLOAT_VECTOR attribute as (num_faces, 3) float64 (the alignment field). NFieldError
     naming the problem if it is missing or of another domain or type."""
@@ -210,9 +233,34 @@ def read_face_vectors(obj, name: str, num_faces: int) -> np.ndarray:
     if attr.domain != "FACE" or attr.data_type != "FLOAT_VECTOR":
         raise NFieldError(f"alignment attribute '{name}' must be a FACE-domain FLOAT_VECTOR attribute "
                           f"(it is {attr.domain} {attr.data_type})")
-    buf = np.empty(num_faces * 3, dtype=np.float32)
-    attr.data.foreach_get("vector", buf)
-    return buf.reshape(num_faces, 3).astype(np.float64)
+    values = attribute_values(obj, name, "FACE", "FLOAT_VECTOR")
+    if values.shape[0] != num_faces:
+        raise NFieldError(f"alignment attribute '{name}' has {values.shape[0]} values for {num_faces} faces")
+    return values
+
+
+def vertex_group_weights(obj, name: str) -> np.ndarray | None:
+    """Weight of every vertex in the vertex group `name` (0 outside it), None if there is no such group."""
+    vg = obj.vertex_groups.get(name)
+    if vg is None:
+        return None
+    me = obj.data
+    out = np.zeros(len(me.vertices), dtype=np.float64)
+    gi = vg.index
+    for v in me.vertices:
+        for g in v.groups:
+            if g.group == gi:
+                out[v.index] = g.weight
+                break
+    return out
+
+
+def polygon_vertices(arrays: MeshArrays, face: int) -> np.ndarray:
+    """The vertices of polygon `face`, in corner order."""
+    start = int(arrays.loop_start[face])
+    later = arrays.loop_start[arrays.loop_start > start]
+    end = int(later.min()) if later.size else arrays.corner_vert.shape[0]
+    return arrays.corner_vert[start:end]
 
 
 def selected_polygons(obj) -> list[int]:

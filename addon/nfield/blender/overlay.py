@@ -69,6 +69,7 @@ class _State:
     built: Any = None  # (version, settings key) the batches were built from
     batches: dict = field(default_factory=dict)  # name -> GPUBatch
     result: Any = None  # last FieldResult handed over by refresh()/tag_changed()
+    samples: dict = field(default_factory=dict)  # (mesh signature, target, faces with a field) -> glyph faces
     stats: dict = field(default_factory=dict)
 
 
@@ -120,7 +121,7 @@ def _settings_key(obj) -> tuple:
     return (round(float(s.glyph_density), 4), round(float(s.glyph_scale), 4), s.symmetry)
 
 
-def _field_for(obj, state: _State, num_polys: int, n: int) -> np.ndarray | None:
+def _field_for(obj, state: _State, geo: mesh_read.OverlayGeometry, n: int) -> np.ndarray | None:
     """(P, n, 3) object-space unit directions per polygon, or None when no field is known yet."""
     res = state.result
     if res is None:
@@ -128,28 +129,22 @@ def _field_for(obj, state: _State, num_polys: int, n: int) -> np.ndarray | None:
     if res is not None:
         try:
             dirs = res.all_directions()
-            if dirs is not None and dirs.shape[0] == num_polys:
+            if dirs is not None and dirs.shape[0] == len(geo.centroids):
                 return np.asarray(dirs, dtype=np.float32)
         except Exception:  # noqa: BLE001 - a stale result object: fall back to the attribute
             pass
-    return _field_from_attribute(obj, num_polys, n)
+    return _field_from_attribute(obj, geo, n)
 
 
-def _field_from_attribute(obj, num_polys: int, n: int) -> np.ndarray | None:
+def _field_from_attribute(obj, geo: mesh_read.OverlayGeometry, n: int) -> np.ndarray | None:
     """The persisted output attribute (first direction per face), fanned out to the n directions by
     rotating about the face normal in steps of 2 pi / n (display only: used after a reload, before the
     session has re-solved)."""
-    mesh = obj.data
-    attr = mesh.attributes.get(obj.nfield.direction_attribute)
-    if attr is None or attr.domain != "FACE" or attr.data_type != "FLOAT_VECTOR" or num_polys == 0:
+    d = mesh_read.attribute_values(obj, obj.nfield.direction_attribute, "FACE", "FLOAT_VECTOR")
+    num_polys = len(geo.centroids)
+    if d is None or num_polys == 0:
         return None
-    d = np.empty(num_polys * 3, dtype=np.float32)
-    attr.data.foreach_get("vector", d)
-    d = d.reshape(num_polys, 3)
-    nor = np.empty(num_polys * 3, dtype=np.float32)
-    mesh.polygons.foreach_get("normal", nor)
-    nor = nor.reshape(num_polys, 3)
-    perp = np.cross(nor, d)
+    perp = np.cross(geo.normals, d)
     out = np.empty((num_polys, n, 3), dtype=np.float32)
     for j in range(n):
         a = 2.0 * np.pi * j / n
@@ -161,11 +156,9 @@ def _singularities_for(obj, state: _State) -> list[tuple[int, float]]:
     res = state.result if state.result is not None else session_cache.get_result(obj)
     if res is not None and getattr(res, "singularities", None) is not None:
         return [(int(v), float(i)) for v, i in res.singularities]
-    attr = obj.data.attributes.get(obj.nfield.singularity_attribute)
-    if attr is None or attr.domain != "POINT" or attr.data_type != "FLOAT":
+    vals = mesh_read.attribute_values(obj, obj.nfield.singularity_attribute, "POINT", "FLOAT")
+    if vals is None:
         return []
-    vals = np.empty(len(obj.data.vertices), dtype=np.float32)
-    attr.data.foreach_get("value", vals)
     nz = np.flatnonzero(vals != 0.0)
     return [(int(v), float(vals[v])) for v in nz]
 
@@ -182,7 +175,7 @@ def _build(obj) -> None:
     geo = mesh_read.overlay_geometry(obj)
     t_geo = time.perf_counter()
     num_polys = len(geo.centroids)
-    fld = _field_for(obj, state, num_polys, n)
+    fld = _field_for(obj, state, geo, n)
     t_field = time.perf_counter()
 
     target = max(1, int(round(GLYPH_BUDGET * float(s.glyph_density))))
@@ -192,10 +185,10 @@ def _build(obj) -> None:
     n_glyphs = 0
     if fld is not None and num_polys:
         valid = np.any(fld[:, 0, :] != 0.0, axis=1)
-        skey = (target, int(valid.sum()))
-        if skey not in geo.samples:
-            geo.samples = {skey: sample_faces(geo.centroids, geo.areas, target, valid)}
-        faces, spacing = geo.samples[skey]
+        skey = (geo.signature, target, int(valid.sum()))
+        if skey not in state.samples:
+            state.samples = {skey: sample_faces(geo.centroids, geo.areas, target, valid)}
+        faces, spacing = state.samples[skey]
         t_sample = time.perf_counter()
         local = np.maximum(geo.edge_len[faces], 0.8 * spacing)
         half = 0.4 * local * float(s.glyph_scale)

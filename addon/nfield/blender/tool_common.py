@@ -44,12 +44,13 @@ def mouse_ray_object(context, obj, mouse):
     return inv @ o, (inv.to_3x3() @ d)
 
 
-def ray_cast(context, obj, mouse):
-    """(location, normal, polygon index) in object space of the first hit of the mouse ray, or None."""
+def ray_cast(context, obj, mouse, arrays: mesh_read.MeshArrays):
+    """(location, normal, polygon index) in object space of the first hit of the mouse ray, or None.
+    `arrays`: the object's mesh_read.mesh_arrays (read once per event)."""
     o, d = mouse_ray_object(context, obj, mouse)
     if d.length == 0:
         return None
-    tree, triangle_polygon = mesh_read.bvh(obj)
+    tree, triangle_polygon = mesh_read.bvh(obj, arrays)
     loc, nrm, tri, _ = tree.ray_cast(o, d.normalized())
     if loc is None:
         return None
@@ -75,7 +76,7 @@ def nearest_on_screen(context, obj, points_obj, mouse, limit):
     best, best_d = None, limit
     m = Vector(mouse)
     for i, p in enumerate(points_obj):
-        q = _to_region(context, obj, Vector(p))
+        q = _to_region(context, obj, Vector(tuple(p)))
         if q is None:
             continue
         dist = (q - m).length
@@ -84,21 +85,20 @@ def nearest_on_screen(context, obj, points_obj, mouse, limit):
     return best
 
 
-def constraint_under_cursor(context, obj, mouse, hit):
+def constraint_under_cursor(context, obj, mouse, hit, arrays: mesh_read.MeshArrays):
     """Face of the constraint the user points at: the constrained face under the cursor (`hit`, from
     ray_cast), else the arrow nearest on screen (its face may be small or hidden behind the arrow); or None."""
     if hit is not None and design.constraint_item(obj, hit[2]) is not None:
         return hit[2]
-    items = [c for c in obj.nfield.constraints if not c.stale and c.face < len(obj.data.polygons)]
-    i = nearest_on_screen(context, obj, [obj.data.polygons[c.face].center for c in items], mouse, PICK_PIXELS)
+    items = [c for c in obj.nfield.constraints if not c.stale and c.face < arrays.num_polygons]
+    i = nearest_on_screen(context, obj, [arrays.polygon_centers[c.face] for c in items], mouse, PICK_PIXELS)
     return None if i is None else items[i].face
 
 
-def pinned_singularity_under_cursor(context, obj, mouse):
+def pinned_singularity_under_cursor(context, obj, mouse, arrays: mesh_read.MeshArrays):
     """Vertex of the pinned singularity nearest on screen to `mouse`, or None."""
-    me = obj.data
-    pinned = [s for s in obj.nfield.singularities if not s.stale and s.vertex < len(me.vertices)]
-    i = nearest_on_screen(context, obj, [me.vertices[s.vertex].co for s in pinned], mouse, PICK_PIXELS)
+    pinned = [s for s in obj.nfield.singularities if not s.stale and s.vertex < arrays.vertices.shape[0]]
+    i = nearest_on_screen(context, obj, [arrays.vertices[s.vertex] for s in pinned], mouse, PICK_PIXELS)
     return None if i is None else pinned[i].vertex
 
 

@@ -21,7 +21,7 @@ from bpy.props import IntProperty
 from bpy.types import Operator
 from mathutils import Vector
 
-from . import api, design
+from . import api, design, mesh_read
 from .operator_base import failure_message
 from .tool_common import (
     DRAG_PIXELS,
@@ -55,8 +55,9 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
     def invoke(self, context, event):
         obj = context.active_object
         mouse = (event.mouse_region_x, event.mouse_region_y)
-        hit = ray_cast(context, obj, mouse)
-        face = constraint_under_cursor(context, obj, mouse, hit)
+        arrays = mesh_read.mesh_arrays(obj)
+        hit = ray_cast(context, obj, mouse, arrays)
+        face = constraint_under_cursor(context, obj, mouse, hit, arrays)
         if face is None and hit is not None:
             face = hit[2]  # an unconstrained face: a new constraint
         last_press.clear()
@@ -66,11 +67,10 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
             return {"PASS_THROUGH"}
         if not self._open_session(obj):
             return {"CANCELLED"}
-        poly = obj.data.polygons[face]
         self._obj_name = obj.name
         self._face = face
-        self._normal = poly.normal.copy()
-        self._anchor = poly.center.copy() if hit is None or hit[2] != face else hit[0].copy()
+        self._normal = Vector(tuple(arrays.polygon_normals[face]))
+        self._anchor = Vector(tuple(arrays.polygon_centers[face])) if hit is None or hit[2] != face else hit[0].copy()
         self._press = Vector(mouse)
         self._dragged = False
         item = design.constraint_item(obj, face)
@@ -171,8 +171,7 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
             if design.constraint_item(obj, face) is not None:
                 design.remove_constraint(obj, face)
             try:
-                if any(getattr(c, "face", None) == face and not hasattr(c, "vertex")
-                       for c in self._session.constraints):
+                if any(getattr(c, "face", None) == face for c in self._session.constraints):
                     self._session.remove(face)
             except ValueError:
                 pass
@@ -218,7 +217,8 @@ class NFIELD_OT_constraint_delete(Operator):
     def invoke(self, context, event):
         obj = context.active_object
         mouse = (event.mouse_region_x, event.mouse_region_y)
-        face = constraint_under_cursor(context, obj, mouse, ray_cast(context, obj, mouse))
+        arrays = mesh_read.mesh_arrays(obj)
+        face = constraint_under_cursor(context, obj, mouse, ray_cast(context, obj, mouse, arrays), arrays)
         if face is None:
             self.report({"INFO"}, "No constraint under the cursor")
             return {"CANCELLED"}

@@ -15,8 +15,9 @@ from __future__ import annotations
 import bpy
 from bpy.props import IntProperty
 from bpy.types import Operator
+from mathutils import Vector
 
-from . import api, design
+from . import api, design, mesh_read
 from .tool_common import (
     ModalViewportTool,
     clear_status,
@@ -57,16 +58,16 @@ class NFIELD_OT_singularity_tool(ModalViewportTool, Operator):
         return {"RUNNING_MODAL"}
 
     def _pick_vertex(self, context, obj, mouse):
-        pinned = pinned_singularity_under_cursor(context, obj, mouse)
+        arrays = mesh_read.mesh_arrays(obj)
+        pinned = pinned_singularity_under_cursor(context, obj, mouse, arrays)
         if pinned is not None:
             return pinned
-        me = obj.data
-        hit = ray_cast(context, obj, mouse)
+        hit = ray_cast(context, obj, mouse, arrays)
         if hit is None:
             return None
         loc, _, face = hit
-        verts = list(me.polygons[face].vertices)
-        return min(verts, key=lambda v: (me.vertices[v].co - loc).length)
+        verts = mesh_read.polygon_vertices(arrays, face)
+        return int(min(verts, key=lambda v: (Vector(tuple(arrays.vertices[v])) - loc).length))
 
     def _valid_numerators(self, n: int) -> tuple[list[int], str]:
         """(the numerators k != 0 the solver accepts at this vertex, why others are refused), from the
@@ -220,8 +221,9 @@ class NFIELD_OT_singularity_delete(Operator):
         return poll_object(context) and len(context.active_object.nfield.singularities) > 0
 
     def invoke(self, context, event):
-        vertex = pinned_singularity_under_cursor(context, context.active_object,
-                                                 (event.mouse_region_x, event.mouse_region_y))
+        obj = context.active_object
+        vertex = pinned_singularity_under_cursor(context, obj, (event.mouse_region_x, event.mouse_region_y),
+                                                 mesh_read.mesh_arrays(obj))
         if vertex is None:
             self.report({"INFO"}, "No pinned singularity under the cursor")
             return {"CANCELLED"}
