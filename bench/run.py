@@ -172,7 +172,7 @@ def markdown(doc: dict) -> str:
     if doc.get("spectral"):
         md += ["## float32 vs double basis", "", spectral.precision_table(doc["spectral"]["results"]), ""]
     if doc.get("targets"):
-        md += ["## Issue targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
+        md += ["## Targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
         for c in doc["targets"]:
             extra = f" ({common.fmt_ms(c['cpu_s'])} CPU)" if "cpu_s" in c else ""
             md.append(f"| {c['what']} | {common.fmt_ms(c['value_s'])}{extra} | < {common.fmt_ms(c['target_s'])} | "
