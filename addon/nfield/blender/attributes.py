@@ -15,6 +15,7 @@ edit mode.
 """
 from __future__ import annotations
 
+import bmesh
 import numpy as np
 
 from ..core import shading
@@ -62,8 +63,6 @@ def _ensure_attribute(me, name, domain, dtype):
 
 
 def _write_bmesh(obj, jobs) -> None:
-    import bmesh
-
     me = obj.data
     bm = bmesh.from_edit_mesh(me)
     for name, domain, dtype, values in jobs:

@@ -25,6 +25,8 @@ The nodes this module adds are named ``nfield ...`` so that updating a material 
 """
 from __future__ import annotations
 
+import warnings
+
 import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 
@@ -258,8 +260,6 @@ def build(obj, *, anisotropy: float | None = None, direction: str | None = None,
 
 def ensure_nodes(mat) -> None:
     """Give `mat` a node tree (Blender < 5: use_nodes = True; 5.0 materials always have one)."""
-    import warnings
-
     with warnings.catch_warnings():  # Material.use_nodes is deprecated in Blender 5.0 (always on there)
         warnings.simplefilter("ignore", DeprecationWarning)
         if mat.node_tree is None or not getattr(mat, "use_nodes", True):

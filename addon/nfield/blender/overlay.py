@@ -37,7 +37,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import bpy
+import gpu
 import numpy as np
+from gpu_extras.batch import batch_for_shader
 
 from . import mesh_read, session_cache
 from .glyphs import constraint_arrow_segments, glyph_segments, sample_faces
@@ -89,8 +91,6 @@ def _shader(kind: str):
     """Builtin shaders by role, with the Blender 3.4 names as fallbacks. kind: 'line' | 'flat' | 'point'."""
     if kind in _shaders:
         return _shaders[kind]
-    import gpu
-
     names = {
         "line": ("POLYLINE_UNIFORM_COLOR", "3D_POLYLINE_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR"),
         "point": ("POINT_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR"),
@@ -165,9 +165,6 @@ def _singularities_for(obj, state: _State) -> list[tuple[int, float]]:
 
 def _build(obj) -> None:
     """(Re)build every batch of ``obj`` from the current field and design. Not called from draw."""
-    import gpu  # noqa: F401
-    from gpu_extras.batch import batch_for_shader
-
     state = _states.setdefault(obj.name, _State())
     t0 = time.perf_counter()
     s = obj.nfield
@@ -349,15 +346,12 @@ def _draw_lines(batch, shader_pair, color, width, region):
         shader.uniform_float("viewportSize", (region.width, region.height))
         shader.uniform_float("lineWidth", width)
     else:
-        import gpu
         gpu.state.line_width_set(width)
     shader.uniform_float("color", color)
     batch.draw(shader)
 
 
 def _draw_points(batch, shader_pair, color, size):
-    import gpu
-
     shader, _ = shader_pair
     gpu.state.point_size_set(size)
     shader.bind()
@@ -367,8 +361,6 @@ def _draw_points(batch, shader_pair, color, size):
 
 def _draw_callback():
     """Draw prebuilt batches only (no geometry work here: a missing/outdated batch schedules a rebuild)."""
-    import gpu
-
     context = bpy.context
     region = context.region
     if region is None:
