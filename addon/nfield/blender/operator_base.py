@@ -3,7 +3,8 @@
 It polls for an active mesh object, refuses when the compiled solver cannot be loaded, and runs an api call
 so that every failure of the core or the compiled solver becomes an ERROR report and ``{'CANCELLED'}`` with
 the settings and design of the object as they were. The operators of ``operators``, ``background``,
-``material``, ``hatching`` and the viewport tools report problems alike through it.
+``material`` and ``hatching`` derive from it; the viewport tools word their reports with
+:func:`failure_message` too, so every nfield operator reports problems alike.
 """
 from __future__ import annotations
 
