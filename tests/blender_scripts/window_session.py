@@ -158,13 +158,13 @@ def pick_face():
 
 
 def wait_for_drag():
-    from nfield.blender import tools
+    from nfield.blender import tool_common
 
-    if tools.last_press and not STATE.get("press_seen"):
+    if tool_common.last_press and not STATE.get("press_seen"):
         # the tool has the press: the test starts dragging only now (on a loaded machine Blender can take
         # a second to handle the press, and it reads the cursor position when it does)
         STATE["press_seen"] = True
-        out("pressed.json", {"mouse": list(tools.last_press.get("mouse", []))})
+        out("pressed.json", {"mouse": list(tool_common.last_press.get("mouse", []))})
     if not os.path.exists(os.path.join(WORKDIR, "dragged")):
         if time.time() - STATE["t0"] > 240:
             fail("timed out waiting for the test's drag")
