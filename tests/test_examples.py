@@ -3,7 +3,8 @@
 The examples check their own claims (constraints met along +d, pinned indices, Poincare-Hopf sums, unit
 directions) with assertions, so an example that stops being true fails here. One that imports ``bpy``
 runs in the headless Blender legs (marker ``blender``), the others in the core legs; each runs in its own
-process with this interpreter.
+process with this interpreter. They are marked ``slow`` (about 25 s together, and they exercise code the
+unit tests cover): ``build_addon.py test --quick`` and the sanitizer job leave them out.
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ EXAMPLES = sorted(p for p in (ROOT / "examples").iterdir() if p.name[:2].isdigit
 
 
 def _param(path: Path):
-    marks = [pytest.mark.blender] if "import bpy" in path.read_text() else []
+    marks = [pytest.mark.slow] + ([pytest.mark.blender] if "import bpy" in path.read_text() else [])
     return pytest.param(path, id=path.name, marks=marks)
 
 
