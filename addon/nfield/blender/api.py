@@ -16,7 +16,7 @@ Solving happens only in :func:`solve` (and in the operators when *Live Update* i
 change the stored design, so adding many constraints from a script costs nothing until the next solve.
 
 This module is also the facade the rest of the add-on calls: the operators, the modal tools, the material and
-the hatching go through it (the functions below ``__all__`` are for them, not part of the scripting API). It
+the hatching go through it (the section "for the add-on" at the end is for them, not the scripting API). It
 validates, then delegates: ``mesh_read`` reads the mesh, ``design`` writes the stored design,
 ``session_cache`` holds the solver session, ``results`` records a new field, ``attributes`` writes it out.
 The material and hatching builders are exported by the package (``nfield.blender``) from their own modules.
