@@ -289,8 +289,11 @@ def bvh(obj, arrays: MeshArrays | None = None) -> tuple[BVHTree, np.ndarray]:
 # ------------------------------------------------------------------------------------------ overlay
 def overlay_geometry(obj, arrays: MeshArrays | None = None) -> OverlayGeometry:
     """Centroids, normals, areas and mean edge lengths of the polygons, vertex positions and normals: read
-    once per mesh signature."""
-    arrays = mesh_arrays(obj) if arrays is None else arrays
+    once per mesh signature. `arrays`: a read the caller made for this operation (reused if the mesh still
+    has its counts; else the mesh is read again)."""
+    me = obj.data
+    if arrays is None or arrays.vertices.shape[0] != len(me.vertices) or arrays.num_polygons != len(me.polygons):
+        arrays = mesh_arrays(obj)
     g = _overlay_cache.get(obj.name)
     if g is not None and g.signature == arrays.signature:
         return g

@@ -163,13 +163,14 @@ def _singularities_for(obj, state: _State) -> list[tuple[int, float]]:
     return [(int(v), float(vals[v])) for v in nz]
 
 
-def _build(obj) -> None:
-    """(Re)build every batch of ``obj`` from the current field and design. Not called from draw."""
+def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
+    """(Re)build every batch of ``obj`` from the current field and design. Not called from draw.
+    `arrays`: the mesh read the caller just made (see refresh), else the mesh is read here."""
     state = _states.setdefault(obj.name, _State())
     t0 = time.perf_counter()
     s = obj.nfield
     n = s.n
-    geo = mesh_read.overlay_geometry(obj)
+    geo = mesh_read.overlay_geometry(obj, arrays)
     t_geo = time.perf_counter()
     num_polys = len(geo.centroids)
     fld = _field_for(obj, state, geo, n)
@@ -260,14 +261,17 @@ def _mark_changed(obj, result) -> None:
     state.version += 1
 
 
-def refresh(obj, result=None) -> None:
+def refresh(obj, result=None, arrays: mesh_read.MeshArrays | None = None) -> None:
     """The field or design of ``obj`` changed (call after every solve / edit): rebuild its batches now and
-    redraw. ``result``: the new FieldResult (else the session cache's or the output attribute is used)."""
+    redraw. ``result``: the new FieldResult (else the session cache's or the output attribute is used).
+    ``arrays``: the mesh read the result was solved on, if the caller holds it: a live drag rebuilds the
+    batches after every solve, and reading the mesh again each time would cost more than the drawing (the
+    signature of that read still decides whether the overlay's geometry is current)."""
     if obj is None or obj.type != "MESH":
         return
     _mark_changed(obj, result)
     if _can_draw():
-        _build(obj)
+        _build(obj, arrays)
         _tag_redraw()
 
 

@@ -22,12 +22,13 @@ def store_result(obj, entry, result) -> None:
     st.last_message = (f"Solved: {len(result.singularities)} singularities"
                        + (f"; {len(stale)} stale item(s) ignored" if stale else ""))
     st.spectral_ready = bool(entry.session is not None and entry.session.has_basis)
-    notify_overlay(obj, result)
+    notify_overlay(obj, result, entry.arrays)
 
 
-def notify_overlay(obj, result=None) -> None:
-    """Tell the viewport overlay that the field (`result`, if given) or the design of `obj` changed."""
+def notify_overlay(obj, result=None, arrays=None) -> None:
+    """Tell the viewport overlay that the field (`result`, if given) or the design of `obj` changed.
+    `arrays`: the mesh read `result` was solved on (saves the overlay a read of its own)."""
     try:
-        overlay.refresh(obj, result)
+        overlay.refresh(obj, result, arrays)
     except Exception as exc:  # noqa: BLE001 - drawing problems must not break solving
         print(f"nfield: overlay refresh failed: {exc}")
