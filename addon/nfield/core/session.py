@@ -90,6 +90,19 @@ class Layer:
     token: int = field(default_factory=_token, compare=False)
 
 
+@dataclass
+class _Region:
+    """A region edit in progress: its faces and triangles, and what cancel_region puts back."""
+
+    faces: np.ndarray          # input faces of the region (sorted, unique)
+    triangles: np.ndarray      # their triangles
+    saved: tuple               # (direction, vector, singularity constraints) before begin_region
+    dirty: bool                # the session's dirty flag before begin_region
+    field_before: Any          # the FieldResult before begin_region
+    frozen_values: np.ndarray  # raw solution per triangle: the values of everything outside the region
+    token: int = field(default_factory=_token)
+
+
 class DesignSession:
     """One mesh, its settings and its constraints, with a warm solver. See the module docstring."""
 
@@ -108,7 +121,7 @@ class DesignSession:
         self._vecs: dict[int, np.ndarray] = {}
         self._sings: dict[int, float] = {}
         self._layers: list[Layer] = []
-        self._region: dict[str, Any] | None = None
+        self._region: _Region | None = None
         self._ops = None
         self._ops_key = None
         self._ops_token = 0
@@ -297,21 +310,21 @@ class DesignSession:
         if self.field is None:
             self.solve()
         tris = np.flatnonzero(np.isin(self.mesh.triangle_face, faces))
-        self._region = {"faces": faces, "triangles": tris, "token": _token(),
-                        "saved": (copy.deepcopy(self._dirs), copy.deepcopy(self._vecs), dict(self._sings)),
-                        "dirty": self._dirty,
-                        "field": self.field, "frozen_values": np.asarray(self.field.raw_solution).copy()}
+        self._region = _Region(faces=faces, triangles=tris,
+                               saved=(copy.deepcopy(self._dirs), copy.deepcopy(self._vecs), dict(self._sings)),
+                               dirty=self._dirty, field_before=self.field,
+                               frozen_values=np.asarray(self.field.raw_solution).copy())
 
     def commit_region(self) -> Layer:
         """End the region edit; its field becomes a layer held fixed by later global solves."""
         if self._region is None:
             raise ValueError("no region edit in progress")
-        if self.field is None or self.field is self._region["field"] or self._dirty:
+        if self.field is None or self.field is self._region.field_before or self._dirty:
             self.solve()
-        tris = self._region["triangles"]
+        tris = self._region.triangles
         active = np.asarray(self.mesh.native.face_active, dtype=bool)
         tris = tris[active[tris]]
-        layer = Layer(faces=self._region["faces"], triangles=tris,
+        layer = Layer(faces=self._region.faces, triangles=tris,
                       values=np.asarray(self.field.raw_solution)[tris].copy())
         self._layers.append(layer)
         self._region = None
@@ -321,9 +334,9 @@ class DesignSession:
         """End the region edit and restore the constraints and field from before begin_region."""
         if self._region is None:
             raise ValueError("no region edit in progress")
-        self._dirs, self._vecs, self._sings = self._region["saved"]
-        self.field = self._region["field"]
-        self._dirty = self._region["dirty"]
+        self._dirs, self._vecs, self._sings = self._region.saved
+        self.field = self._region.field_before
+        self._dirty = self._region.dirty
         self._region = None
 
     @property
@@ -488,11 +501,11 @@ class DesignSession:
     # ------------------------------------------------------------------ internals
     def _check_face_constraint(self, c, attr: str, label: str) -> None:
         _face_vectors(self.mesh, [c], attr, label)  # range, excluded, zero, normal-parallel
-        if self._region is not None and c.face not in set(self._region["faces"].tolist()):
+        if self._region is not None and c.face not in set(self._region.faces.tolist()):
             raise ValueError(f"face {c.face} is outside the region being edited")
 
     def _ring_in_region(self, v: int) -> bool:
-        region = set(self._region["triangles"].tolist())
+        region = set(self._region.triangles.tolist())
         return all(t in region for t in self.mesh.native.vertex_ring_faces(v))
 
     def _face_frozen(self, face: int, frozen_set: set) -> bool:
@@ -503,9 +516,9 @@ class DesignSession:
         if self._region is not None:
             active = np.asarray(self.mesh.native.face_active, dtype=bool)
             free = np.zeros(self.mesh.num_triangles, dtype=bool)
-            free[self._region["triangles"]] = True
+            free[self._region.triangles] = True
             tris = np.flatnonzero(active & ~free)
-            return tris, self._region["frozen_values"][tris], ("region", self._region["token"])
+            return tris, self._region.frozen_values[tris], ("region", self._region.token)
         if not self._layers:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.complex128), ()
         tris = np.concatenate([layer.triangles for layer in self._layers])
