@@ -331,8 +331,8 @@ def pybind11_cmake_dir() -> str:
 
 
 def check_sources() -> None:
-    if not (ROOT / "native" / "python" / "bindings.cpp").is_file():
-        raise Failure("native/python/bindings.cpp does not exist (nothing to build yet)")
+    if not (ROOT / "native" / "python" / "module.cpp").is_file():
+        raise Failure("native/python/module.cpp does not exist (nothing to build yet)")
     if not list((ROOT / "native" / "src").glob("*.cpp")):
         raise Failure("native/src/*.cpp: no sources (nothing to build yet)")
 

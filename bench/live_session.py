@@ -1,4 +1,4 @@
-"""Benchmark of the exact live session (issue 3, part 1 and the local-editing part of 4).
+"""Benchmark of the exact live session (live constraint edits and local editing).
 
 For each mesh and for the biharmonic (order 2) and harmonic (order 1) energy: a 4-direction field,
 curvature-max alignment, strength 1, 30 random hard direction constraints.
@@ -46,7 +46,7 @@ MESHES = ["stanford-bunny.obj", "armadillo.obj"]
 QUICK_MESHES = ["rocker-arm.obj"]
 NUM_CONSTRAINTS = 30
 REGION_FACES = 2000
-# Issue 3 targets (69k-face bunny, 30 hard constraints, biharmonic 4-direction field).
+# Targets (69k-face bunny, 30 hard constraints, biharmonic 4-direction field).
 TARGETS = {"reaim_ms": 10.0, "new_face_ms": 100.0}
 
 
@@ -299,7 +299,7 @@ def main() -> int:
           + ", ".join(f"{r['mesh']} {r['loadavg_before'][0]:.1f} / {r['loadavg_after'][0]:.1f}" for r in rows)
           + f" on {meta['cpus']} CPUs: timings on a loaded machine are pessimistic.", "", table(rows), ""]
     if checks:
-        md += ["Issue 3 targets (bunny, biharmonic, 30 constraints):", "",
+        md += ["Targets (bunny, biharmonic, 30 constraints):", "",
                "| what | median | target | met |", "|---|---|---|---|"]
         md += [f"| {c['what']} | {c['median_ms']:.1f} ms | < {c['target_ms']:.0f} ms | {'yes' if c['met'] else 'NO'} |"
                for c in checks]

@@ -205,7 +205,7 @@ def markdown(doc: dict) -> str:
     if doc.get("spectral"):
         md += ["## float32 vs double basis", "", spectral.precision_table(doc["spectral"]["results"]), ""]
     if doc.get("targets"):
-        md += ["## Issue targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
+        md += ["## Targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
         for c in doc["targets"]:
             if "ratio" in c:
                 md.append(f"| {c['what']} | {c['ratio']:.2f} | <= {c['target_ratio']} | {'yes' if c['met'] else 'NO'} |")

@@ -1,4 +1,4 @@
-"""Benchmark of the spectral reduction (paper Table 1, "Bases setup" and "Reduced setup & solve"; issue §2).
+"""Benchmark of the spectral reduction (paper Table 1, "Bases setup" and "Reduced setup & solve").
 
 For each mesh: a 4-direction field, curvature-max alignment, strength 1, 30 random hard direction constraints
 (the exact-solver benchmark's setting), a basis of k = 500 eigenfields.
@@ -44,7 +44,7 @@ MESHES = ["fandisk.obj", "rocker-arm.obj", "stanford-bunny.obj", "armadillo.obj"
 QUICK_MESHES = ["fandisk.obj", "rocker-arm.obj"]
 OPTIONAL_MESHES = ["armadillo-x4"]  # a failure (e.g. out of memory) leaves the mesh out instead of stopping the run
 NUM_CONSTRAINTS = 30
-# Issue §2 targets.
+# Targets of the spectral mode.
 TARGETS = {"basis_s": {"stanford-bunny.obj": 60.0, "armadillo.obj": 75.0}, "update_ms": 2.0, "reconstruction_ms": 10.0}
 
 
@@ -261,7 +261,7 @@ def markdown(rows: list[dict], checks: list[dict], m: dict) -> str:
           + ", ".join(f"{r['mesh']} {r['read_bandwidth_gb_s']:.1f} GB/s" for r in rows)
           + "; the reconstruction reads all of U (k x faces complex values), so its time is bounded below by "
             "memory / bandwidth.", "",
-          "## Issue §2 targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
+          "## Spectral targets", "", "| what | measured | target | met |", "|---|---|---|---|"]
     for c in checks:
         extra = f" ({f(c['cpu_s'])} CPU)" if "cpu_s" in c else ""
         md.append(f"| {c['what']} | {f(c['value_s'])}{extra} | < {f(c['target_s'])} | {'yes' if c['met'] else 'NO'} |")

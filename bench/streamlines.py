@@ -1,4 +1,4 @@
-"""Benchmark of the hatching-stroke tracer (issue 5: "strokes covering the 69k-face bunny at a spacing of 1%
+"""Benchmark of the hatching-stroke tracer (target: "strokes covering the 69k-face bunny at a spacing of 1%
 of its bounding-box diagonal in under 2 s").
 
 Field: nfield.core.solve(bunny, n=2, order=2, align="curvature-max") (not timed). Timed: the whole

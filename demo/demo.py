@@ -6,10 +6,11 @@ anisotropically, hatch it, render with Cycles on the CPU and save an editable .b
 (``python3 build_addon.py demo`` runs exactly this.) Steps, all through the scripting API ``nfield.blender``:
 
 1. load tests/data/rocker-arm.obj (10k vertices, 20k faces), smooth shading;
-2. design a curvature-aligned line field (n = 2, biharmonic, align curvature-max) with hard direction
-   constraints on a few faces and a pinned singularity of index +1/2, solve, write the attributes;
-3. build the anisotropic material (Principled BSDF, tangent = the field; then its perpendicular) and, when
-   ``nfield.core.trace_streamlines`` exists, hatching strokes as a Curves object parented to the mesh;
+2. design a curvature-aligned line field (n = 2, biharmonic, align curvature-max) with the hard direction
+   constraints of examples/rocker_constraints.json and the pinned singularity of index +1/2 of
+   examples/rocker_singularities.json (the files the command line examples use), solve, write the attributes;
+3. build the anisotropic material (Principled BSDF, tangent = the field; then its perpendicular) and hatching
+   strokes as a Curves object parented to the mesh;
 4. render small PNGs with Cycles (CPU, fixed seed, no denoising) into out/ and save out/demo.blend: open it
    in Blender with the nfield add-on enabled and the design (constraints, singularity, settings) is there to
    edit; the material and strokes are ordinary Blender data.
@@ -28,15 +29,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 MESH = ROOT / "tests" / "data" / "rocker-arm.obj"
 
-# The design (object-space face/vertex indices of rocker-arm.obj as imported by Blender's OBJ importer,
-# which keeps the file's order): hard direction constraints and one singularity.
-CONSTRAINTS = [
-    (17, (-0.001147, -0.006245, 0.000254)),
-    (19941, (-0.00662757, 0.0035687, -0.001529)),
-    (8332, (0.000892173, 0.002167, 0.0073923)),
-    (8955, (0.006373, -0.002294, -0.003951)),
-]
-SINGULARITY = (7032, 0.5)  # index +1/2 (n = 2)
+# The design: face/vertex indices of rocker-arm.obj, which Blender's OBJ importer keeps in the file's order
+# (object space). The singularity's index 1/2 is a multiple of 1/n for this n = 2 (and for n = 4).
+CONSTRAINTS_FILE = ROOT / "examples" / "rocker_constraints.json"
+SINGULARITIES_FILE = ROOT / "examples" / "rocker_singularities.json"
 N = 2
 
 
@@ -82,9 +78,10 @@ def main(argv=None) -> int:
     # --- the design, through the scripting API
     t0 = time.perf_counter()
     nb.configure(obj, n=N, order=2, align="curvature-max", strength=1.0, live_update=False)
-    for face, d in CONSTRAINTS:
-        nb.add_constraint(obj, face, d)
-    nb.add_singularity(obj, *SINGULARITY)
+    for c in json.loads(CONSTRAINTS_FILE.read_text()):
+        nb.add_constraint(obj, c["face"], c["direction"])
+    for s in json.loads(SINGULARITIES_FILE.read_text()):
+        nb.add_singularity(obj, s["vertex"], s["index"])
     result = nb.solve(obj, write=True)
     lap("solve_and_write", t0)
 
@@ -113,28 +110,21 @@ def main(argv=None) -> int:
     render("isotropic")
     nb.build_anisotropic_material(obj, anisotropy=1.0, direction="field")
 
-    # --- hatching (needs the streamline tracer)
-    strokes_info = None
-    try:
-        from nfield.core import trace_streamlines  # noqa: F401
-        have_tracer = True
-    except ImportError:
-        have_tracer = False
-    if have_tracer:
-        t0 = time.perf_counter()
-        curves_obj = nb.build_hatching(obj, spacing=0.02, cross_hatch=False, seed=1)
-        lap("hatching", t0)
-        strokes_info = {"object": curves_obj.name, "strokes": curves_obj.get("nfield_strokes"),
-                        "points": curves_obj.get("nfield_points"), "radius": curves_obj.get("nfield_radius")}
-        render("anisotropic_strokes")  # the strokes over the anisotropic metal: the highlight follows them
-        # pen on paper: matte surface, bright background
-        obj.active_material = nb_hatching.ink_material("Paper", (0.92, 0.9, 0.86, 1.0))
-        bg = next(n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
-        strength = bg.inputs["Strength"].default_value
-        bg.inputs["Strength"].default_value = 1.5
-        render("hatching")
-        bg.inputs["Strength"].default_value = strength
-        obj.active_material = mat
+    # --- hatching
+    t0 = time.perf_counter()
+    curves_obj = nb.build_hatching(obj, spacing=0.02, cross_hatch=False, seed=1)
+    lap("hatching", t0)
+    strokes_info = {"object": curves_obj.name, "strokes": curves_obj.get("nfield_strokes"),
+                    "points": curves_obj.get("nfield_points"), "radius": curves_obj.get("nfield_radius")}
+    render("anisotropic_strokes")  # the strokes over the anisotropic metal: the highlight follows them
+    # pen on paper: matte surface, bright background
+    obj.active_material = nb_hatching.ink_material("Paper", (0.92, 0.9, 0.86, 1.0))
+    bg = next(n for n in scene.world.node_tree.nodes if n.bl_idname == "ShaderNodeBackground")
+    strength = bg.inputs["Strength"].default_value
+    bg.inputs["Strength"].default_value = 1.5
+    render("hatching")
+    bg.inputs["Strength"].default_value = strength
+    obj.active_material = mat
 
     # --- save the editable design
     t0 = time.perf_counter()
@@ -151,7 +141,7 @@ def main(argv=None) -> int:
         "singularities_pinned": [(s.vertex, s.numerator / st.n) for s in st.singularities],
         "singularities": len(result.singularities), "energy": float(result.energy),
         "attributes": [st.direction_attribute, st.smooth_attribute, st.singularity_attribute],
-        "material": mat.name, "hatching": strokes_info if have_tracer else "skipped (no nfield.core.trace_streamlines)",
+        "material": mat.name, "hatching": strokes_info,
         "render": {"engine": scene.render.engine, "size": [width, height], "samples": scene.cycles.samples,
                    "device": scene.cycles.device},
         "files": files, "seconds": timings, "total_seconds": round(time.perf_counter() - t_start, 2),

@@ -105,28 +105,6 @@ def system_blender_env() -> dict:
     return env
 
 
-def stationarity_residual(ops, order: int, lam: float, w, rhs, free) -> float:
-    """First-order optimality of a spline w (complex, one value per unknown = per face on meshes without
-    excluded faces): the largest |((E_order - lam M) w - rhs)_f| over the faces `free` (those in no constraint
-    row and not substituted), relative to the largest sum_j |E_fj| |w_j| + |lam| A_f |w_f| + |rhs_f| there (the
-    normwise backward-error scale: a backward-stable solve gives ~1e-16 whatever the condition number).
-    n-vector spline (eq. 8): rhs = -lam M u'; n-direction spline (eq. 12): rhs = M u' (the safeguard only
-    changes u' at constrained faces)."""
-    import numpy as np
-
-    rows, cols, vals = (np.asarray(a) for a in ops.energy_matrix(order))
-    w = np.asarray(w, dtype=np.complex128)
-    mass = np.asarray(ops.mass)
-    Ew = np.zeros(len(w), dtype=np.complex128)
-    np.add.at(Ew, rows, vals * w[cols])
-    size = np.zeros(len(w))
-    np.add.at(size, rows, np.abs(vals) * np.abs(w[cols]))
-    r = Ew - lam * mass * w - np.asarray(rhs)
-    size += abs(lam) * mass * np.abs(w) + np.abs(rhs)
-    free = np.asarray(free)
-    return float(np.abs(r[free]).max() / size[free].max())
-
-
 # ------------------------------------------------------------------------------------------ markers
 # `build_addon.py test` runs the suite in legs selected by these markers: the core suite (neither) under
 # every Python, `blender` under every PyPI bpy release of the matrix, `gui` once with Debian's Blender 3.4.
@@ -186,7 +164,8 @@ def addon_zip() -> Path:
 
 # Files that need PyPI bpy at import time: not even imported when the marker expression deselects
 # `blender` (the core legs then never load bpy, and under a Python without bpy nothing is skipped either).
-BLENDER_ONLY_FILES = {"test_blender_headless.py"}
+BLENDER_ONLY_FILES = {"test_blender_headless.py", "test_blender_design.py", "test_blender_failures.py",
+                      "test_blender_mesh_read.py"}
 
 
 def pytest_ignore_collect(collection_path, config):
@@ -232,3 +211,23 @@ def pytest_sessionfinish(session, exitstatus):
 def pytest_unconfigure(config):
     if bpy_exit_crashes():  # see there: pytest's own exit would end in SIGSEGV after a complete, reported run
         end_bpy_process(getattr(config, "_nfield_exitstatus", 0))
+def stationarity_residual(ops, order: int, lam: float, w, rhs, free) -> float:
+    """First-order optimality of a spline w (complex, one value per unknown = per face on meshes without
+    excluded faces): the largest |((E_order - lam M) w - rhs)_f| over the faces `free` (those in no constraint
+    row and not substituted), relative to the largest sum_j |E_fj| |w_j| + |lam| A_f |w_f| + |rhs_f| there (the
+    normwise backward-error scale: a backward-stable solve gives ~1e-16 whatever the condition number).
+    n-vector spline (eq. 8): rhs = -lam M u'; n-direction spline (eq. 12): rhs = M u' (the safeguard only
+    changes u' at constrained faces)."""
+    import numpy as np
+
+    rows, cols, vals = (np.asarray(a) for a in ops.energy_matrix(order))
+    w = np.asarray(w, dtype=np.complex128)
+    mass = np.asarray(ops.mass)
+    Ew = np.zeros(len(w), dtype=np.complex128)
+    np.add.at(Ew, rows, vals * w[cols])
+    size = np.zeros(len(w))
+    np.add.at(size, rows, np.abs(vals) * np.abs(w[cols]))
+    r = Ew - lam * mass * w - np.asarray(rhs)
+    size += abs(lam) * mass * np.abs(w) + np.abs(rhs)
+    free = np.asarray(free)
+    return float(np.abs(r[free]).max() / size[free].max())

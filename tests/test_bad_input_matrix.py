@@ -13,7 +13,7 @@ states its documented outcome:
   along +d, vector constraints exactly, singularities with their index), on every connected component.
 * ``blender_na=<reason>``: the input cannot exist in a Blender mesh (printed as the reason of the skip).
 
-The core and CLI layers run here; the add-on layer runs in tests/test_blender_headless.py (it needs the
+The core and CLI layers run here; the add-on layer runs in tests/test_blender_failures.py (it needs the
 packaged extension in this process's only bpy) over the same ``CASES``. docs/hardening.md ("Bad input")
 holds the table of outcomes; ``test_docs_list_every_case`` keeps it complete.
 """
@@ -249,7 +249,8 @@ class Case:
 S = lambda **kw: kw  # noqa: E731  (params)
 SING_BOUNDARY_ERR = r"vertex 0\b.*(not an interior vertex|cannot carry a singularity)"
 NA_INDEX = "a Blender mesh cannot hold a vertex index outside its vertex list"
-NA_EIG = "the add-on has no eigenvalue command (its spectral mode, k eigenfields, is not available yet)"
+NA_EIG = ("the add-on has no eigenvalue command: its spectral mode computes a basis of k eigenfields to solve in, "
+          "it does not list eigenvalues")
 
 CASES: list[Case] = [
     # ---- mesh data

@@ -12,7 +12,7 @@
 * a tiny Cycles render shows the strokes (they darken a self-lit white sheet).
 
 Everything runs in a subprocess (this file as a script, PYTHONPATH=addon) so that it never shares a
-process with the packaged extension that tests/test_blender_headless.py installs.
+process with the packaged extension that tests/blender_support.py installs.
 """
 from __future__ import annotations
 
@@ -121,113 +121,106 @@ def _run_checks(out_dir: Path) -> dict:
                      "bevel": float(lobj.data.bevel_depth), "parent": lobj.parent.name}
     bpy.data.objects.remove(lobj)
 
-    # --- with the tracer
+    # --- with the tracer (nfield.core.trace_streamlines)
+    nb.configure(obj, n=2, order=2, align="none", live_update=False)
+    nb.add_constraint(obj, 300, (1.0, 0.2, 0.0))
+    nb.solve(obj, write=True)
+    t = time.perf_counter()
+    h1 = nb.build_hatching(obj, spacing=0.03, seed=3, name="H1")
+    res["trace_seconds"] = time.perf_counter() - t
+    h2 = nb.build_hatching(obj, spacing=0.03, seed=3, name="H2")
+
+    def positions(o):
+        a = np.empty(len(o.data.points) * 3, dtype=np.float32)
+        o.data.position_data.foreach_get("vector", a)
+        return a.reshape(-1, 3)
+
+    p1, p2 = positions(h1), positions(h2)
+    # distance to the surface (object space): BVH of the sheet
+    from mathutils.bvhtree import BVHTree
+
+    tree = BVHTree.FromPolygons([v.co[:] for v in me.vertices], [tuple(p.vertices) for p in me.polygons])
+    r1 = float(h1["nfield_radius"])
+    dist = np.array([tree.find_nearest(tuple(x))[3] for x in p1[:: max(1, len(p1) // 2000)]])
+    res["trace"] = {"curves": len(h1.data.curves), "points": len(p1), "same_seed_equal":
+                    bool(p1.shape == p2.shape and np.array_equal(p1, p2)), "radius": r1,
+                    "max_dist_to_surface": float(dist.max()), "parent": h1.parent.name}
+    # density: a vertex group with weight 1 on x < 0 and 0.1 on x >= 0 (object space)
+    vg = obj.vertex_groups.new(name="tone")
+    left = [v.index for v in me.vertices if v.co.x < 0]
+    right = [v.index for v in me.vertices if v.co.x >= 0]
+    vg.add(left, 1.0, "REPLACE")
+    vg.add(right, 0.1, "REPLACE")
+    hd = nb.build_hatching(obj, spacing=0.03, seed=3, density="tone", name="HD")
+    pd = positions(hd)
+    res["density"] = {"left_points": int((pd[:, 0] < 0).sum()), "right_points": int((pd[:, 0] >= 0).sum()),
+                      "uniform_left": int((p1[:, 0] < 0).sum()), "uniform_right": int((p1[:, 0] >= 0).sum())}
     try:
-        from nfield.core import trace_streamlines  # noqa: F401
-        have = True
-    except ImportError:
-        have = False
-    res["tracer"] = have
-    if have:
-        nb.configure(obj, n=2, order=2, align="none", live_update=False)
-        nb.add_constraint(obj, 300, (1.0, 0.2, 0.0))
-        nb.solve(obj, write=True)
-        t = time.perf_counter()
-        h1 = nb.build_hatching(obj, spacing=0.03, seed=3, name="H1")
-        res["trace_seconds"] = time.perf_counter() - t
-        h2 = nb.build_hatching(obj, spacing=0.03, seed=3, name="H2")
+        nb.build_hatching(obj, density="no_such_group")
+        res["density_error"] = ""
+    except ValueError as exc:
+        res["density_error"] = str(exc)
+    hx = nb.build_hatching(obj, spacing=0.05, seed=1, cross_hatch=True, name="HX")
+    fx = np.empty(len(hx.data.curves), dtype=np.int32)
+    hx.data.attributes["nfield_family"].data.foreach_get("value", fx)
+    res["cross_families"] = sorted(set(fx.tolist()))
+    # operators
+    for o in list(bpy.context.selected_objects):
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    res["op_hatching"] = list(bpy.ops.nfield.hatching(spacing=0.04, seed=2))
+    res["op_material"] = list(bpy.ops.nfield.material_anisotropic(anisotropy=0.5, direction="PERPENDICULAR"))
+    res["op_hatching_object"] = f"{obj.name} Hatching" in bpy.data.objects
+    for name in ("H1", "H2", "HD", "HX"):
+        bpy.data.objects.remove(bpy.data.objects[name])
 
-        def positions(o):
-            a = np.empty(len(o.data.points) * 3, dtype=np.float32)
-            o.data.position_data.foreach_get("vector", a)
-            return a.reshape(-1, 3)
-
-        p1, p2 = positions(h1), positions(h2)
-        # distance to the surface (object space): BVH of the sheet
-        from mathutils.bvhtree import BVHTree
-
-        tree = BVHTree.FromPolygons([v.co[:] for v in me.vertices], [tuple(p.vertices) for p in me.polygons])
-        r1 = float(h1["nfield_radius"])
-        dist = np.array([tree.find_nearest(tuple(x))[3] for x in p1[:: max(1, len(p1) // 2000)]])
-        res["trace"] = {"curves": len(h1.data.curves), "points": len(p1), "same_seed_equal":
-                        bool(p1.shape == p2.shape and np.array_equal(p1, p2)), "radius": r1,
-                        "max_dist_to_surface": float(dist.max()), "parent": h1.parent.name}
-        # density: a vertex group with weight 1 on x < 0 and 0.1 on x >= 0 (object space)
-        vg = obj.vertex_groups.new(name="tone")
-        left = [v.index for v in me.vertices if v.co.x < 0]
-        right = [v.index for v in me.vertices if v.co.x >= 0]
-        vg.add(left, 1.0, "REPLACE")
-        vg.add(right, 0.1, "REPLACE")
-        hd = nb.build_hatching(obj, spacing=0.03, seed=3, density="tone", name="HD")
-        pd = positions(hd)
-        res["density"] = {"left_points": int((pd[:, 0] < 0).sum()), "right_points": int((pd[:, 0] >= 0).sum()),
-                          "uniform_left": int((p1[:, 0] < 0).sum()), "uniform_right": int((p1[:, 0] >= 0).sum())}
-        try:
-            nb.build_hatching(obj, density="no_such_group")
-            res["density_error"] = ""
-        except ValueError as exc:
-            res["density_error"] = str(exc)
-        hx = nb.build_hatching(obj, spacing=0.05, seed=1, cross_hatch=True, name="HX")
-        fx = np.empty(len(hx.data.curves), dtype=np.int32)
-        hx.data.attributes["nfield_family"].data.foreach_get("value", fx)
-        res["cross_families"] = sorted(set(fx.tolist()))
-        # operators
-        for o in list(bpy.context.selected_objects):
-            o.select_set(False)
-        obj.select_set(True)
-        bpy.context.view_layer.objects.active = obj
-        res["op_hatching"] = list(bpy.ops.nfield.hatching(spacing=0.04, seed=2))
-        res["op_material"] = list(bpy.ops.nfield.material_anisotropic(anisotropy=0.5, direction="PERPENDICULAR"))
-        res["op_hatching_object"] = f"{obj.name} Hatching" in bpy.data.objects
-        for name in ("H1", "H2", "HD", "HX"):
-            bpy.data.objects.remove(bpy.data.objects[name])
-
-        # --- a tiny render: dark strokes on a white sheet
-        scene = bpy.context.scene
-        scene.render.engine = "CYCLES"
-        scene.cycles.device = "CPU"
-        scene.cycles.samples = 8
-        scene.cycles.use_denoising = False
-        scene.cycles.seed = 0
-        scene.render.resolution_x = scene.render.resolution_y = 64
-        scene.render.image_settings.file_format = "PNG"
-        scene.view_settings.view_transform = "Standard"
-        white = bpy.data.materials.new("White")  # a self-lit white sheet: every pixel is white without strokes
-        material.ensure_nodes(white)  # Blender < 5.0 creates the node tree only with use_nodes
-        nt = white.node_tree
-        for node in list(nt.nodes):
-            if node.bl_idname != "ShaderNodeOutputMaterial":
-                nt.nodes.remove(node)
-        emit = nt.nodes.new("ShaderNodeEmission")
-        nt.links.new(emit.outputs[0], next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial").inputs[0])
-        obj.active_material = white
-        world = bpy.data.worlds.new("W")
-        world.color = (1.0, 1.0, 1.0)
-        scene.world = world
-        cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-        cam.data.type = "ORTHO"
-        cam.data.ortho_scale = 2.0
-        scene.collection.objects.link(cam)
-        cam.matrix_world = obj.matrix_world @ Matrix.Translation((0, 0, 3))
-        scene.camera = cam
-        hatch = bpy.data.objects[f"{obj.name} Hatching"]
-        # dark ink: the strokes still carry the grey user material of the rebuild check, which renders as a
-        # default surface in Blender < 5.0 (no node tree) and as a Principled BSDF in 5.0
-        hatch.data.materials.clear()
-        hatch.data.materials.append(hatching.ink_material())
-        means = []
-        for visible in (False, True):
-            hatch.hide_render = not visible
-            path = out_dir / f"hatch_{int(visible)}.png"
-            scene.render.filepath = str(path)
-            bpy.ops.render.render(write_still=True)
-            img = bpy.data.images.load(str(path))
-            px = np.empty(64 * 64 * 4, dtype=np.float32)
-            img.pixels.foreach_get(px)
-            means.append(float(px.reshape(-1, 4)[:, :3].mean()))
-            dark = float((px.reshape(-1, 4)[:, :3].mean(axis=1) < 0.5).mean())
-            res[f"dark_fraction_{int(visible)}"] = dark
-        res["render_means"] = means
+    # --- a tiny render: dark strokes on a white sheet
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = 8
+    scene.cycles.use_denoising = False
+    scene.cycles.seed = 0
+    scene.render.resolution_x = scene.render.resolution_y = 64
+    scene.render.image_settings.file_format = "PNG"
+    scene.view_settings.view_transform = "Standard"
+    white = bpy.data.materials.new("White")  # a self-lit white sheet: every pixel is white without strokes
+    material.ensure_nodes(white)  # Blender < 5.0 creates the node tree only with use_nodes
+    nt = white.node_tree
+    for node in list(nt.nodes):
+        if node.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(node)
+    emit = nt.nodes.new("ShaderNodeEmission")
+    nt.links.new(emit.outputs[0], next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial").inputs[0])
+    obj.active_material = white
+    world = bpy.data.worlds.new("W")
+    world.color = (1.0, 1.0, 1.0)
+    scene.world = world
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 2.0
+    scene.collection.objects.link(cam)
+    cam.matrix_world = obj.matrix_world @ Matrix.Translation((0, 0, 3))
+    scene.camera = cam
+    hatch = bpy.data.objects[f"{obj.name} Hatching"]
+    # dark ink: the strokes still carry the grey user material of the rebuild check, which renders as a
+    # default surface in Blender < 5.0 (no node tree) and as a Principled BSDF in 5.0
+    hatch.data.materials.clear()
+    hatch.data.materials.append(hatching.ink_material())
+    means = []
+    for visible in (False, True):
+        hatch.hide_render = not visible
+        path = out_dir / f"hatch_{int(visible)}.png"
+        scene.render.filepath = str(path)
+        bpy.ops.render.render(write_still=True)
+        img = bpy.data.images.load(str(path))
+        px = np.empty(64 * 64 * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+        means.append(float(px.reshape(-1, 4)[:, :3].mean()))
+        dark = float((px.reshape(-1, 4)[:, :3].mean(axis=1) < 0.5).mean())
+        res[f"dark_fraction_{int(visible)}"] = dark
+    res["render_means"] = means
     return res
 
 
@@ -261,8 +254,6 @@ def test_hatching_curves(tmp_path):
     assert lg["type"] == "CURVE" and lg["splines"] == 6 and lg["max_pos_err"] < 1e-6 and lg["parent"] == "Sheet"
     assert abs(lg["bevel"] - 0.004) < 1e-9
 
-    if not r["tracer"]:
-        pytest.skip("nfield.core.trace_streamlines is not available: only the conversion was tested")
     t = r["trace"]
     assert t["curves"] > 5 and t["same_seed_equal"] and t["parent"] == "Sheet"
     # on the surface: lifted by one radius (plus the chord error of the bent sheet, tiny here)

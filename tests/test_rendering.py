@@ -24,7 +24,7 @@ Measurements (mean absolute difference of linear RGB over all pixels):
   (both measured bit-identical: Cycles' anisotropic GGX does not depend on the tangent's sign).
 
 The renders run in a subprocess (this file run as a script with PYTHONPATH=addon), so the test never shares a
-process with another copy of the add-on (tests/test_blender_headless.py installs the packaged extension).
+process with another copy of the add-on (tests/blender_support.py installs the packaged extension).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""DesignSession (addon/nfield/core/session.py): the exact live editing engine of issue 3.
+"""DesignSession (addon/nfield/core/session.py): the exact live editing engine.
 
 What is checked, and against what:
   1. Incremental = from scratch. Long random edit sequences (add / re-aim / remove direction constraints,
@@ -40,7 +40,7 @@ core = pytest.importorskip("nfield.core", reason="nfield.core is not importable"
 from nfield.core import DesignSession, DirectionConstraint, SingularityConstraint, VectorConstraint  # noqa: E402
 
 
-# The issue's accuracy requirement for incremental vs from-scratch results ("to 1e-8 relative"). The
+# The accuracy required of incremental vs from-scratch results ("to 1e-8 relative"). The
 # two computations factor the same matrix; they differ only in the order in which the cached columns
 # were computed (batched back-substitutions vs one batch), so the observed difference is ~1e-15 or 0.
 REL_TOL = 1e-8
@@ -701,7 +701,7 @@ def test_cancel_leaves_session_usable():
         calls.append(fraction)
         raise KeyboardInterrupt
 
-    # An exception in the callback cancels too, and comes back as itself (bindings.cpp run_with_progress).
+    # An exception in the callback cancels too, and comes back as itself (native/python/binding_support.hpp run_with_progress).
     for cb, expected in ((refuse, Cancelled), (refuse_at_end, Cancelled), (boom, Boom),
                          (interrupt, KeyboardInterrupt)):
         calls.clear()

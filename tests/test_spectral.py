@@ -3,7 +3,7 @@
 What is checked, and against what:
   1. The basis is what it claims: S u = lambda M u (residual relative to |S u|), U^H M U = I, eigenvalues
      ascending and equal to the independent eigen solver (nfield._native.eigen: dense / Spectra), also when
-     the spectrum is cut into several slices (spectrum slicing, spectral_basis.hpp) and when stored in
+     the spectrum is cut into several slices (spectrum_slicing.hpp) and when stored in
      float32 (half the memory; values unchanged, vectors rounded to ~1e-7).
   2. The reduced solution is the exact solution when the basis is complete (k = number of unknowns): the
      reduction only replaces V^-1 by U Lambda^-1 U^H, which is exact for a full basis. Checked for orders

@@ -1,9 +1,9 @@
-"""Hatching strokes (issue 5, section 2): the native streamline tracer through nfield.core.trace_streamlines.
+"""Hatching strokes: the native streamline tracer through nfield.core.trace_streamlines.
 
 What is checked, and why the tolerances are what they are:
   * field alignment - inside a triangle the field is constant and the tracer integrates it exactly (a straight
     segment along one of the n directions), so every segment's n-symmetric angle to its triangle's field is
-    rounding-level; the issue's bound (5 degrees) is asserted, plus 1e-6 rad as the real expectation
+    rounding-level; the required bound (5 degrees) is asserted, plus 1e-6 rad as the real expectation
     (segments are at least 1e-9 h long, so rounding of coordinates of size ~diag gives < 1e-6 rad).
   * separation - every sample point of a stroke was tested against every earlier stroke's sample points at
     d_test = 0.5 d_sep, so sample points of different strokes are >= d_test (up to the < 1e-9 h snap of a

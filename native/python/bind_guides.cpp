@@ -1,5 +1,5 @@
 // pybind11 binding of guide authoring (features, curves, comb, mirror symmetry, cuts): part of the module
-// nfield._native, registered by bind_guides() from the module definition in bindings.cpp. Native errors
+// nfield._native, registered by bind_guides() from the module definition in module.cpp. Native errors
 // reach Python through the module's exception translators (ValueError / RuntimeError). Calls that walk
 // the mesh release the GIL.
 #include <pybind11/complex.h>
@@ -11,6 +11,7 @@
 #include <cmath>
 #include <memory>
 
+#include "binding_support.hpp"
 #include "nfield/comb.hpp"
 #include "nfield/curve_guide.hpp"
 #include "nfield/energy_rows.hpp"
@@ -22,14 +23,8 @@
 #include "nfield/mesh_cuts.hpp"
 #include "nfield/mirror.hpp"
 
-namespace py = pybind11;
-using namespace nfield;
-
+namespace nfield::python {
 namespace {
-
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using IndexArray = py::array_t<long long, py::array::c_style | py::array::forcecast>;
-using ComplexArray = py::array_t<std::complex<double>, py::array::c_style | py::array::forcecast>;
 
 std::vector<Eigen::Vector3d> to_points(const DoubleArray& a, const char* what) {
   if (a.ndim() != 2 || a.shape(1) != 3) throw InputError(std::string(what) + " must be an array of shape (k, 3)");
@@ -362,3 +357,5 @@ void bind_guides(py::module_& m) {
   }, py::arg("mesh"), py::arg("edges"),
         "The mesh cut open along edges: (mesh, vertex_origin, num_cut, unopened (k,2), already_cut (k,2))");
 }
+
+}  // namespace nfield::python

@@ -1,28 +1,23 @@
-// pybind11 binding of the quad remesher and its quality statistics (native/include/nfield/remesh/).
-// Kept in its own file; PYBIND11_MODULE in bindings.cpp calls bind_remesh(m). The heavy call releases the
-// GIL; its progress callback re-acquires it, and returning False (or raising) cancels.
-#include <pybind11/functional.h>
-#include <pybind11/numpy.h>
-#include <pybind11/pybind11.h>
-#include <pybind11/stl.h>
-
+// Binding of the remesh area: the quad remesher and its quality statistics (native/include/nfield/remesh/).
+// The heavy call releases the GIL; its progress callback re-acquires it, and returning False (or raising)
+// cancels (binding_support.hpp).
+#include <array>
 #include <climits>
 #include <memory>
-#include <optional>
+#include <string>
+#include <vector>
 
+#include "binding_support.hpp"
 #include "nfield/errors.hpp"
 #include "nfield/mesh.hpp"
 #include "nfield/remesh/quad_remesher.hpp"
 #include "nfield/remesh/quad_stats.hpp"
 
-namespace py = pybind11;
-using namespace nfield;
+namespace nfield::python {
+
 using namespace nfield::remesh;
 
 namespace {
-
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using IndexArray = py::array_t<long long, py::array::c_style | py::array::forcecast>;
 
 std::vector<Vec3> to_points(const DoubleArray& a, const char* what) {
   if (a.ndim() != 2 || a.shape(1) != 3) throw InputError(std::string(what) + " must be an array of shape (k, 3)");
@@ -56,7 +51,7 @@ PolygonMesh to_polygon_mesh(const DoubleArray& vertices, const IndexArray& offse
   return m;
 }
 
-std::vector<std::array<int, 3>> to_triangles(const IndexArray& a, int num_vertices) {
+std::vector<std::array<int, 3>> to_reference_triangles(const IndexArray& a, int num_vertices) {
   if (a.ndim() != 2 || a.shape(1) != 3) throw InputError("reference triangles must be an array of shape (k, 3)");
   std::vector<std::array<int, 3>> out(a.shape(0));
   for (py::ssize_t i = 0; i < a.shape(0); ++i)
@@ -66,49 +61,6 @@ std::vector<std::array<int, 3>> to_triangles(const IndexArray& a, int num_vertic
       out[i][c] = static_cast<int>(x);
     }
   return out;
-}
-
-py::array_t<double> points_array(const std::vector<Vec3>& p) {
-  py::array_t<double> out({static_cast<py::ssize_t>(p.size()), py::ssize_t(3)});
-  double* d = out.mutable_data();
-  for (size_t i = 0; i < p.size(); ++i)
-    for (int c = 0; c < 3; ++c) d[3 * i + c] = p[i][c];
-  return out;
-}
-
-template <class T>
-py::array_t<T> vector_array(const std::vector<T>& v) {
-  py::array_t<T> out(v.size());
-  std::copy(v.begin(), v.end(), out.mutable_data());
-  return out;
-}
-
-/// Progress callable wrapper (same contract as the rest of the module): called with the GIL held;
-/// returning False, or raising, cancels; an exception raised by the callable is re-raised as itself.
-struct RemeshProgress {
-  Progress callback;
-  std::shared_ptr<std::optional<py::error_already_set>> error = std::make_shared<std::optional<py::error_already_set>>();
-};
-
-RemeshProgress wrap(const py::object& callable) {
-  RemeshProgress p;
-  if (callable.is_none()) return p;
-  auto error = p.error;
-  p.callback = [callable, error](double fraction) -> bool {
-    py::gil_scoped_acquire gil;
-    try {
-      py::object r = callable(fraction);
-      return r.is_none() || r.cast<bool>();
-    } catch (py::error_already_set& e) {
-      error->emplace(std::move(e));
-      return false;
-    } catch (const py::cast_error&) {
-      PyErr_SetString(PyExc_TypeError, "progress callback must return a bool or None");
-      error->emplace(py::error_already_set());
-      return false;
-    }
-  };
-  return p;
 }
 
 py::dict extraction_dict(const ExtractionReport& r) {
@@ -144,25 +96,15 @@ void bind_remesh(py::module_& m) {
     o.max_face_size = max_face_size;
     o.refuse_small_components = refuse_small_components;
     o.relax_iterations = relax_iterations;
-    const RemeshProgress cb = wrap(progress);
-    QuadRemeshResult r;
-    try {
-      py::gil_scoped_release release;
-      r = quad_remesh(*mesh, dirs, o, cb.callback);
-    } catch (const Cancelled&) {
-      if (cb.error->has_value()) {
-        py::error_already_set e = std::move(**cb.error);
-        cb.error->reset();
-        throw e;
-      }
-      throw;
-    }
+    const PythonProgress cb = wrap_progress(progress);
+    const QuadRemeshResult r =
+        run_with_progress(cb, [&] { return without_gil([&] { return quad_remesh(*mesh, dirs, o, cb.callback); }); });
     py::dict d;
-    d["vertices"] = points_array(r.mesh.positions);
-    d["face_offsets"] = vector_array(r.mesh.offsets);
-    d["face_indices"] = vector_array(r.mesh.indices);
+    d["vertices"] = from_vec3(r.mesh.positions);
+    d["face_offsets"] = from_std(r.mesh.offsets);
+    d["face_indices"] = from_std(r.mesh.indices);
     std::vector<int> kind(r.vertex_feature_kind.begin(), r.vertex_feature_kind.end());
-    d["vertex_feature_kind"] = vector_array(kind);
+    d["vertex_feature_kind"] = from_std(kind);
     d["messages"] = r.messages;
     d["num_components"] = r.num_components;
     d["remeshed_components"] = r.remeshed_components;
@@ -217,8 +159,8 @@ void bind_remesh(py::module_& m) {
       vv = vertex_valences(pm);
     }
     std::vector<int> boundary(vv.boundary.begin(), vv.boundary.end());
-    return py::make_tuple(vector_array(r.interior), vector_array(r.boundary), vector_array(vv.valence),
-                          vector_array(boundary));
+    return py::make_tuple(from_std(r.interior), from_std(r.boundary), from_std(vv.valence),
+                          from_std(boundary));
   }, py::arg("vertices"), py::arg("face_offsets"), py::arg("face_indices"),
      "(irregular interior vertices, irregular boundary vertices, valence per vertex, boundary flag per vertex)");
 
@@ -227,7 +169,7 @@ void bind_remesh(py::module_& m) {
                               const py::object& ref_directions) {
     const PolygonMesh pm = to_polygon_mesh(V, offsets, indices);
     const std::vector<Vec3> rv = to_points(ref_vertices, "reference vertices");
-    const auto rt = to_triangles(ref_triangles, static_cast<int>(rv.size()));
+    const auto rt = to_reference_triangles(ref_triangles, static_cast<int>(rv.size()));
     std::vector<Vec3> rd;
     if (!ref_directions.is_none()) {
       rd = to_points(ref_directions.cast<DoubleArray>(), "reference directions");
@@ -251,9 +193,9 @@ void bind_remesh(py::module_& m) {
       e.mutable_data()[2 * i + 1] = edges[i][1];
     }
     py::dict d;
-    d["scaled_jacobians"] = vector_array(jac);
+    d["scaled_jacobians"] = from_std(jac);
     d["edges"] = e;
-    d["edge_alignment_degrees"] = rd.empty() ? py::object(py::none()) : py::object(vector_array(align));
+    d["edge_alignment_degrees"] = rd.empty() ? py::object(py::none()) : py::object(from_std(align));
     d["distance_to_reference"] = forward;
     d["hausdorff"] = hausdorff;
     return d;
@@ -262,3 +204,5 @@ void bind_remesh(py::module_& m) {
      "Scaled Jacobian per face, edge alignment per unique edge (degrees) and Hausdorff distance (mesh units) "
      "against a reference triangle surface (see nfield/remesh/quad_stats.hpp)");
 }
+
+}  // namespace nfield::python

@@ -10,10 +10,6 @@
 
 namespace nfield {
 
-namespace {
-using LongComplex = std::complex<long double>;
-}
-
 HermitianFactor::HermitianFactor(const ComplexSparse& matrix, const std::string& what, const std::string& advice)
     : n_(static_cast<int>(matrix.rows())), matrix_(matrix) {
   matrix_.makeCompressed();
@@ -97,20 +93,24 @@ Eigen::MatrixXcd HermitianFactor::solve_block(const Eigen::MatrixXcd& B) const {
 }
 
 Eigen::MatrixXcd HermitianFactor::extended_residual(const Eigen::MatrixXcd& B, const Eigen::MatrixXcd& X) const {
+  // Row i of the Hermitian V is the conjugate of its stored column i: r_i = b_i - sum_j conj(V_ji) x_j, summed in
+  // long double registers (a gather over x, one pass over V per right-hand side).
   Eigen::MatrixXcd R(n_, B.cols());
-  std::vector<LongComplex> acc(n_);
+  const int* outer = matrix_.outerIndexPtr();
+  const int* inner = matrix_.innerIndexPtr();
+  const Complex* value = matrix_.valuePtr();
   for (Eigen::Index c = 0; c < B.cols(); ++c) {
-    for (int i = 0; i < n_; ++i) acc[i] = LongComplex(B(i, c).real(), B(i, c).imag());
-    for (int j = 0; j < n_; ++j) {
-      const long double xr = X(j, c).real(), xi = X(j, c).imag();
-      if (xr == 0 && xi == 0) continue;
-      for (ComplexSparse::InnerIterator it(matrix_, j); it; ++it) {
-        const long double vr = it.value().real(), vi = it.value().imag();
-        acc[it.row()] -= LongComplex(vr * xr - vi * xi, vr * xi + vi * xr);
+    const Complex* x = X.col(c).data();
+    for (int i = 0; i < n_; ++i) {
+      long double re = B(i, c).real(), im = B(i, c).imag();
+      for (int p = outer[i]; p < outer[i + 1]; ++p) {
+        const long double vr = value[p].real(), vi = -value[p].imag();  // conj(V_ji) = V_ij
+        const long double xr = x[inner[p]].real(), xi = x[inner[p]].imag();
+        re -= vr * xr - vi * xi;
+        im -= vr * xi + vi * xr;
       }
+      R(i, c) = Complex(static_cast<double>(re), static_cast<double>(im));
     }
-    for (int i = 0; i < n_; ++i)
-      R(i, c) = Complex(static_cast<double>(acc[i].real()), static_cast<double>(acc[i].imag()));
   }
   return R;
 }

@@ -83,11 +83,6 @@ FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, 
   }
 }
 
-Complex FieldOperators::transport(int e, int from_face) const {
-  const Complex r = transport(e);
-  return mesh_->dual_edges()[e].face0 == from_face ? r : std::conj(r);
-}
-
 ComplexSparse FieldOperators::energy_matrix(int order) const {
   if (order < 1 || order > 4)
     throw ParameterError("energy order must be 1 (harmonic) to 4, got " + std::to_string(order));

@@ -1,17 +1,15 @@
 #include "nfield/spectrum.hpp"
 
 #include <Eigen/CholmodSupport>
-#include <Eigen/Eigenvalues>
 #include <Spectra/SymEigsShiftSolver.h>
 #include <algorithm>
 #include <cmath>
 
+#include "nfield/dense_eigen.hpp"
 #include "nfield/errors.hpp"
 
 namespace nfield {
 namespace {
-
-constexpr int kDenseLimit = 800;  // below this many unknowns a dense Hermitian solver is faster and exact
 
 /// Shift-invert operator of the realified standard problem A = M^-1/2 S M^-1/2 for Spectra:
 /// y = (A - sigma I)^-1 x = M^1/2 (S - sigma M)^-1 M^1/2 x, computed with a complex factorization.
@@ -54,18 +52,6 @@ class RealifiedShiftInvert {
   mutable int ops_ = 0;
   Eigen::CholmodSupernodalLLT<ComplexSparse, Eigen::Lower> factor_;
 };
-
-Eigenpairs dense_eigenpairs(const ComplexSparse& S, const Eigen::VectorXd& mass, int k) {
-  const Eigen::VectorXd inv_sqrt = mass.cwiseSqrt().cwiseInverse();
-  Eigen::MatrixXcd A = inv_sqrt.cast<Complex>().asDiagonal() * Eigen::MatrixXcd(S) * inv_sqrt.cast<Complex>().asDiagonal();
-  A = 0.5 * (A + A.adjoint()).eval();
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> es(A);
-  if (es.info() != Eigen::Success) throw SolverError("dense eigen solver failed");
-  Eigenpairs out;
-  out.values = es.eigenvalues().head(k);
-  out.vectors = inv_sqrt.cast<Complex>().asDiagonal() * es.eigenvectors().leftCols(k);
-  return out;
-}
 
 /// Lanczos on the realified problem. Every complex eigenpair appears there twice (z and i z); we group
 /// numerically equal Ritz values and keep the rank of their complex span, so complex multiplicities
@@ -126,13 +112,15 @@ Eigenpairs eigenpairs_of(const ComplexSparse& S, const Eigen::VectorXd& mass, in
   if (k < 1 || k > N)
     throw ParameterError("number of eigenpairs k must be between 1 and the number of faces with a field (" +
                          std::to_string(N) + "), got " + std::to_string(k));
-  if (N <= kDenseLimit || 2 * k + 2 >= 2 * N) {
-    if (N > 4000) throw ParameterError("k=" + std::to_string(k) + " is too close to the problem size " +
-                                       std::to_string(N) + " for the iterative eigen solver; choose a smaller k");
+  // Spectra's Lanczos on the realified problem (2N unknowns, 2k + 1 wanted) takes at most k = N - 2.
+  if (use_dense_eigen(N, k, N - 2)) {
     Eigenpairs out = dense_eigenpairs(S, mass, k);
     if (progress) progress(1.0);
     return out;
   }
+  if (k > N - 2)
+    throw ParameterError("k=" + std::to_string(k) + " is too close to the problem size " + std::to_string(N) +
+                         " for the iterative eigen solver; choose a smaller k");
   Eigenpairs out = lanczos_eigenpairs(S, mass, k, unit, progress);
   if (progress) progress(1.0);
   return out;

@@ -187,13 +187,31 @@ void ExactSolver::refine_rows(const std::vector<ConstraintRow>& rows, const Eige
       violation[r] = v;
       worst = std::max(worst, std::abs(v) / std::max(size, 1e-300));
     }
-    if (!(worst > 1e-13)) return;
+    if (!(worst > 1e-10)) return;
     const Eigen::VectorXd dgamma = solve_constraint_system(K, violation).gamma;
     std::unordered_map<int, Complex> loads;
     for (int r = 0; r < R; ++r)
       for (const auto& [f, c] : rows[r].terms) loads[f] -= dgamma[r] * c;
     field += response_to(loads);
   }
+}
+
+void ExactSolver::check_constrained_faces_carry_data(const Response& y, const Response& w) const {
+  double data = 0, value = 0;
+  std::set<std::string> names;
+  for (const auto& [f, c] : constraints_.faces) {
+    if (c.kind != ConstraintSet::Kind::Direction) return;  // a vector constraint sets a scale of its own
+    data = std::max(data, std::abs(value_at(y, f)));
+    value = std::max(value, std::abs(value_at(w, f)));
+    names.insert("face " + std::to_string(f));
+  }
+  if (!(data > 0) || value > 1e-9 * data) return;
+  for (const auto& [vertex, rows] : constraints_.singularity_rows)
+    for (const auto& row : rows)
+      for (const auto& t : row.terms)
+        if (constraints_.faces.count(t.first)) names.insert("singularity at vertex " + std::to_string(vertex));
+  throw_contradictory(names, "; together they force the field to vanish on the constrained faces, which then "
+                             "cannot point along their directions");
 }
 
 void ExactSolver::check_rows_hold(const ComplexVector& field) const {

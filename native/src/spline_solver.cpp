@@ -421,14 +421,22 @@ ComplexVector ExactSolver::solve() {
       const std::vector<ConstraintRow> rows = free_rows(symmetric_rows(constraints_.rows(pins.faces, pins.magnitude)));
       Eigen::MatrixXd K;
       const Response w = schur_solve(rows, response, K);
+      if (pins.faces.empty()) check_constrained_faces_carry_data(response, w);
       if (!pins.update(constraints_, [&](int f) { return value_at(w, f); })) continue;
-      sign_fixed_ = pins.faces;
       ComplexVector field = assemble(w);
       refine_rows(rows, K, field);
       if (mirror_) {
         field = project(field);
         symmetric_refinement(field, rhs_full, rows);
       }
+      // The orientation once more on the assembled field: in a direct solve the values above come from the Gram
+      // matrix, and a face whose value is at rounding level may come out on the other side.
+      if (!pins.update(constraints_, [&](int f) {
+            const int u = system_.unknown_of_face[f];
+            return u >= 0 ? field[u] : fixed_value(f);
+          }))
+        continue;
+      sign_fixed_ = pins.faces;
       check_rows_hold(to_faces(field));
       // Snap constrained faces onto their constraint: removes the rounding of the column combination
       // (relative 1e-12 of the largest term), so constraints hold to the last bit; with symmetry the mirror

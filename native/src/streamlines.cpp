@@ -12,6 +12,7 @@
 
 #include "nfield/errors.hpp"
 #include "nfield/singularities.hpp"
+#include "nfield/stroke_points.hpp"
 
 namespace nfield {
 namespace {
@@ -20,78 +21,8 @@ constexpr double kTwoPi = 2.0 * M_PI;
 constexpr int kMaxZeroMoves = 16;
 constexpr int kMaxWalkFaces = 10000;
 
-/// Uniform hash grid of 3D points (cell size `cell`), storing point ids. Cell coordinates are packed into
-/// 64 bits (21 bits each, wrapping): aliasing only adds candidates, which are distance-checked anyway.
-class HashGrid {
- public:
-  explicit HashGrid(double cell) : cell_(cell), inv_(1.0 / cell) { cells_.reserve(1 << 16); }
-  double cell() const { return cell_; }
-  void insert(int id, const Eigen::Vector3d& p) { cells_[key(coord(p[0]), coord(p[1]), coord(p[2]))].push_back(id); }
-  /// Removes `id`, which must be the most recently inserted id of its cell.
-  void remove_last(int id, const Eigen::Vector3d& p) {
-    auto it = cells_.find(key(coord(p[0]), coord(p[1]), coord(p[2])));
-    if (it != cells_.end() && !it->second.empty() && it->second.back() == id) it->second.pop_back();
-  }
-  /// Calls fn(id) for every id in cells meeting the ball (p, r); fn returns true to stop early.
-  template <class Fn>
-  bool any_in_ball(const Eigen::Vector3d& p, double r, Fn&& fn) const {
-    const long long x0 = coord(p[0] - r), x1 = coord(p[0] + r);
-    const long long y0 = coord(p[1] - r), y1 = coord(p[1] + r);
-    const long long z0 = coord(p[2] - r), z1 = coord(p[2] + r);
-    for (long long x = x0; x <= x1; ++x)
-      for (long long y = y0; y <= y1; ++y)
-        for (long long z = z0; z <= z1; ++z) {
-          auto it = cells_.find(key(x, y, z));
-          if (it == cells_.end()) continue;
-          for (int id : it->second)
-            if (fn(id)) return true;
-        }
-    return false;
-  }
-
- private:
-  long long coord(double v) const { return static_cast<long long>(std::floor(v * inv_)); }
-  static std::uint64_t key(long long x, long long y, long long z) {
-    const std::uint64_t m = (1u << 21) - 1;
-    return ((static_cast<std::uint64_t>(x) & m) << 42) | ((static_cast<std::uint64_t>(y) & m) << 21) |
-           (static_cast<std::uint64_t>(z) & m);
-  }
-  double cell_, inv_;
-  std::unordered_map<std::uint64_t, std::vector<int>> cells_;
-};
-
-/// Sample points of one family: positions, owning stroke, arc-length coordinate along the stroke.
-struct PointSet {
-  std::vector<Eigen::Vector3d> pos;
-  std::vector<int> stroke;
-  std::vector<double> arc;
-  std::vector<Eigen::Vector3d> dir;  // field direction of the segment starting at the point
-  HashGrid fine, coarse;  // coarse (4x cells) serves the large radii of low-density regions
-  explicit PointSet(double cell) : fine(cell), coarse(4.0 * cell) {}
-  int add(const Eigen::Vector3d& p, int s, double a, const Eigen::Vector3d& d) {
-    const int id = static_cast<int>(pos.size());
-    pos.push_back(p);
-    dir.push_back(d);
-    stroke.push_back(s);
-    arc.push_back(a);
-    fine.insert(id, p);
-    coarse.insert(id, p);
-    return id;
-  }
-  void pop() {
-    const int id = static_cast<int>(pos.size()) - 1;
-    fine.remove_last(id, pos[id]);
-    coarse.remove_last(id, pos[id]);
-    pos.pop_back();
-    dir.pop_back();
-    stroke.pop_back();
-    arc.pop_back();
-  }
-  template <class Fn>
-  bool any_in_ball(const Eigen::Vector3d& p, double r, Fn&& fn) const {
-    return (r <= 2.0 * fine.cell() ? fine : coarse).any_in_ball(p, r, fn);
-  }
-};
+using strokes::HashGrid;
+using strokes::PointSet;
 
 struct Location {
   int face = -1;

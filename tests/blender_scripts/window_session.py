@@ -158,13 +158,13 @@ def pick_face():
 
 
 def wait_for_drag():
-    from nfield.blender import tools
+    from nfield.blender import tool_common
 
-    if tools.last_press and not STATE.get("press_seen"):
+    if tool_common.last_press and not STATE.get("press_seen"):
         # the tool has the press: the test starts dragging only now (on a loaded machine Blender can take
         # a second to handle the press, and it reads the cursor position when it does)
         STATE["press_seen"] = True
-        out("pressed.json", {"mouse": list(tools.last_press.get("mouse", []))})
+        out("pressed.json", {"mouse": list(tool_common.last_press.get("mouse", []))})
     if not os.path.exists(os.path.join(WORKDIR, "dragged")):
         if time.time() - STATE["t0"] > 240:
             fail("timed out waiting for the test's drag")
@@ -185,11 +185,11 @@ def report():
         mw = obj.matrix_world
         # The clicked face: where Blender actually received the press (X events can land a few pixels
         # from where xdotool aimed), found with Blender's own ray cast, independently of the tool's code.
-        from nfield.blender import tools
+        from nfield.blender import tool_common
 
         face = STATE["face"]
         press_offset = None
-        mouse = tools.last_press.get("mouse")
+        mouse = tool_common.last_press.get("mouse")
         if mouse:
             press_offset = math.hypot(mouse[0] - STATE["press"][0], mouse[1] - STATE["press"][1])
             origin = view3d_utils.region_2d_to_origin_3d(region, rv3d, Vector(mouse))
@@ -219,7 +219,7 @@ def report():
         from nfield.blender import overlay
 
         res["overlay_stats"] = overlay.last_build_stats()
-        res["tool_press"] = dict(tools.last_press)
+        res["tool_press"] = dict(tool_common.last_press)
         shot = os.path.join(WORKDIR, "window.png")
         with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
             bpy.ops.screen.screenshot(filepath=shot)
@@ -270,10 +270,10 @@ def spectral_start():
 
 def spectral_wait():
     """UI timer: counts its own ticks while the worker computes (a frozen UI would not tick)."""
-    from nfield.blender import operators
+    from nfield.blender import background
 
     try:
-        status = operators.precompute_status
+        status = background.precompute_status
         if status["state"] == "running":
             SPECTRAL["ticks"] += 1
             SPECTRAL.setdefault("tick_times", []).append(round(time.time() - SPECTRAL["t0"], 3))

@@ -10,25 +10,34 @@ Scripting API (see ``api``)::
 Data model: per-object settings and design in ``obj.nfield`` (``properties``), object space, base mesh
 (modifiers are ignored). This package holds no field math: it only calls ``nfield.core``.
 
-``register()`` registers every class of this package, including the overlay (``overlay``) and the
-interactive tools (``tools``) when those modules are present. If the compiled solver cannot be loaded
-(built for another Python), registration still succeeds and the panel shows the loader's message instead
-of a traceback.
+The modules form layers that import only downwards; docs/architecture.md lists them (tests/test_layering.py
+checks it). ``register()`` registers every module with Blender classes or handlers, in ``_MODULES`` order.
+If the compiled solver cannot be loaded (built for another Python), registration still succeeds and the
+panel shows the loader's message instead of a traceback.
 """
 from __future__ import annotations
 
-import importlib
+import atexit
 
 import bpy
 
-from . import state
+from . import (
+    background,
+    handlers,
+    hatching,
+    material,
+    operators,
+    overlay,
+    panels,
+    properties,
+    state,
+    tools,
+)
 from .api import (  # noqa: F401  (public scripting API)
     NFieldError,
     add_constraint,
     add_singularity,
     begin_region,
-    build_anisotropic_material,
-    build_hatching,
     cancel_region,
     clear_constraints,
     clear_singularities,
@@ -44,20 +53,12 @@ from .api import (  # noqa: F401  (public scripting API)
     sync,
     write_attributes,
 )
+from .hatching import build as build_hatching  # noqa: F401  (public scripting API)
+from .material import build as build_anisotropic_material  # noqa: F401  (public scripting API)
 
-#: modules registered in this order (optional ones may be missing in partial installs)
-_MODULES = ("properties", "operators", "background", "material", "hatching", "panels")
-_OPTIONAL_MODULES = ("overlay", "tools")
+#: modules registered in this order (unregistered in reverse)
+_MODULES = (properties, operators, background, material, hatching, panels, overlay, tools, handlers)
 _registered: list = []
-
-
-def _app_handlers() -> tuple:
-    """(handler list, function) pairs that keep the session cache in step with file load and undo/redo."""
-    from . import session_cache
-
-    return ((bpy.app.handlers.load_post, session_cache.on_load_post),
-            (bpy.app.handlers.undo_post, session_cache.on_undo_redo),
-            (bpy.app.handlers.redo_post, session_cache.on_undo_redo))
 
 
 def _unregister_at_exit() -> None:
@@ -70,37 +71,21 @@ def register():
         # Blender as a Python module (PyPI bpy): nothing unregisters add-ons when the interpreter exits, and
         # bpy 4.5 then hangs in its exit handlers when a property with an update callback is still registered
         # (a plain PropertyGroup with update= shows it). Unregistering first lets the process exit.
-        import atexit
-
         atexit.unregister(_unregister_at_exit)
         atexit.register(_unregister_at_exit)
     state.native_problem = state.native_error() or ""
     if state.native_problem:
         print(f"nfield: {state.native_problem}")
-    for name in _MODULES + _OPTIONAL_MODULES:
-        try:
-            mod = importlib.import_module(f"{__name__}.{name}")
-        except ImportError as exc:
-            if name in _OPTIONAL_MODULES and getattr(exc, "name", "") == f"{__name__}.{name}":
-                continue  # that part is not installed
-            raise
+    for mod in _MODULES:
         mod.register()
         _registered.append(mod)
-    for lst, fn in _app_handlers():
-        if fn not in lst:
-            lst.append(fn)
 
 
 def unregister():
-    from . import session_cache
-
-    for lst, fn in _app_handlers():
-        if fn in lst:
-            lst.remove(fn)
     while _registered:
         mod = _registered.pop()
         try:
             mod.unregister()
         except Exception as exc:  # noqa: BLE001 - keep unregistering the rest
             print(f"nfield: unregistering {mod.__name__} failed: {exc}")
-    session_cache.clear()
+    handlers.forget_everything()

@@ -14,6 +14,12 @@ are mesh vertex indices. The operators (``bpy.ops.nfield.*``) are thin wrappers 
 
 Solving happens only in :func:`solve` (and in the operators when *Live Update* is on): edit functions only
 change the stored design, so adding many constraints from a script costs nothing until the next solve.
+
+This module is also the facade the rest of the add-on calls: the operators, the modal tools, the material and
+the hatching go through it (the section "for the add-on" at the end is for them, not the scripting API). It
+validates, then delegates: ``mesh_read`` reads the mesh, ``design`` writes the stored design,
+``session_cache`` holds the solver session, ``results`` records a new field, ``attributes`` writes it out.
+The material and hatching builders are exported by the package (``nfield.blender``) from their own modules.
 """
 from __future__ import annotations
 
@@ -22,72 +28,52 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from . import attributes, session_cache
-from .properties import ALIGNMENT_CORE, CORE_ALIGNMENT, ORDER_ENERGY
-from .session_cache import NFieldError
+from ..core import native
+from . import attributes, design, jobs, mesh_read, session_cache
+from .choices import (
+    CORE_ALIGNMENT,
+    INDEX_TOLERANCE,
+    MAX_STRENGTH,
+    MIN_STRENGTH,
+    ORDER_ENERGY,
+    SYMMETRIES,
+    TANGENT_TOLERANCE,
+)
+from .design import restore, snapshot, stale_items  # noqa: F401  (part of the facade)
+from .errors import NFieldError
+from .mesh_read import check_mesh_object
+from .results import notify_overlay, store_result  # noqa: F401  (part of the facade)
 
 __all__ = [
     "NFieldError", "configure", "add_constraint", "remove_constraint", "clear_constraints", "add_singularity",
     "remove_singularity", "clear_singularities", "solve", "field", "write_attributes", "begin_region",
     "commit_region", "cancel_region", "release_layer", "precompute_spectral", "sync", "stale_items",
-    "build_anisotropic_material", "build_hatching",
 ]
-
-_SYMMETRIES = (1, 2, 3, 4, 6)
-#: the solver's admissible strengths (nfield.core.solve.MIN_STRENGTH / MAX_STRENGTH)
-MIN_STRENGTH, MAX_STRENGTH = 1e-6, 1e6
-#: the settings configure() may change (restored when a solve with new settings fails)
-_SETTING_KEYS = ("symmetry", "energy", "alignment", "alignment_attribute", "strength", "solver_mode", "spectral_k",
-                 "live_update")
-
-
-def _check_object(obj):
-    if obj is None:
-        raise NFieldError("no active object: select a mesh object")
-    if getattr(obj, "type", None) != "MESH":
-        kind = getattr(obj, "type", type(obj).__name__)
-        raise NFieldError(f"object '{getattr(obj, 'name', obj)}' is a {str(kind).lower()}, not a mesh")
-    if len(obj.data.polygons) == 0:
-        raise NFieldError(f"mesh '{obj.data.name}' of object '{obj.name}' is empty (it has no faces)")
-    return obj
 
 
 def sync(obj):
     """Read the mesh and remap the stored design if the mesh changed. Returns (MeshArrays, notes)."""
-    _check_object(obj)
-    arrays = session_cache.mesh_arrays(obj)
-    notes = session_cache.remap_design(obj, arrays)
+    check_mesh_object(obj)
+    arrays = mesh_read.mesh_arrays(obj)
+    notes = design.remap_design(obj, arrays)
     if notes:
         obj.nfield.last_message = "; ".join(notes)
     return arrays, notes
 
 
-def stale_items(obj) -> list[str]:
-    """Descriptions of the constraints / singularities / layers flagged stale."""
-    st = obj.nfield
-    out = [f"constraint on face {c.face}" for c in st.constraints if c.stale]
-    out += [f"singularity at vertex {s.vertex}" for s in st.singularities if s.stale]
-    out += [f"layer '{l.name}'" for l in st.layers if l.stale]
-    return out
-
-
 # ------------------------------------------------------------------------------------------ settings
-_updating = False
-
-
 def configure(obj, *, n: int | None = None, order: int | None = None, align: str | None = None,
               strength: float | None = None, mode: str | None = None, k: int | None = None,
               alignment_attribute: str | None = None, live_update: bool | None = None) -> None:
     """Change the object's settings (None keeps a setting). align: "none", "curvature-max", "curvature-min",
     or "attribute" / "field" (then alignment_attribute names a face FLOAT_VECTOR attribute). mode: "exact" or
     "spectral" (k eigenfields)."""
-    global _updating
-    _check_object(obj)
+    check_mesh_object(obj)
     st = obj.nfield
     values: dict[str, Any] = {}
     if n is not None:
-        if isinstance(n, bool) or int(n) != n or int(n) not in _SYMMETRIES:
-            raise NFieldError(f"n must be one of {', '.join(map(str, _SYMMETRIES))} (got {n!r})")
+        if isinstance(n, bool) or int(n) != n or int(n) not in SYMMETRIES:
+            raise NFieldError(f"n must be one of {', '.join(map(str, SYMMETRIES))} (got {n!r})")
         values["symmetry"] = str(int(n))
     if order is not None:
         if isinstance(order, bool) or int(order) != order or int(order) not in ORDER_ENERGY:
@@ -119,48 +105,10 @@ def configure(obj, *, n: int | None = None, order: int | None = None, align: str
         values["spectral_k"] = int(k)
     if live_update is not None:
         values["live_update"] = bool(live_update)
-    _updating = True
-    try:
+    with design.suspended_updates():
         for key, val in values.items():
             if getattr(st, key) != val:
                 setattr(st, key, val)
-    finally:
-        _updating = False
-
-
-def updates_suspended() -> bool:
-    """True while configure() changes settings (property update callbacks must not re-solve then)."""
-    return _updating
-
-
-def snapshot(obj) -> tuple:
-    """The user's settings and design (constraints, singularities, list positions) of `obj`, for restore()."""
-    st = obj.nfield
-    settings = tuple(getattr(st, k) for k in _SETTING_KEYS)
-    return settings, _snapshot_design(st), (st.active_constraint_index, st.active_singularity_index)
-
-
-def restore(obj, saved: tuple) -> bool:
-    """Put back what snapshot() saw, without re-solving (update callbacks are suspended). Only what differs is
-    written. Returns True if anything was changed."""
-    global _updating
-    st = obj.nfield
-    settings, design, active = saved
-    changed = False
-    _updating = True
-    try:
-        for key, value in zip(_SETTING_KEYS, settings):
-            if getattr(st, key) != value:
-                setattr(st, key, value)
-                changed = True
-        if _snapshot_design(st) != design:
-            _restore_design(st, design)
-            changed = True
-        if (st.active_constraint_index, st.active_singularity_index) != active:
-            st.active_constraint_index, st.active_singularity_index = active
-    finally:
-        _updating = False
-    return changed
 
 
 # ------------------------------------------------------------------------------------------ constraints
@@ -214,58 +162,22 @@ def add_constraint(obj, face: int, direction: Iterable[float], kind: str = "dire
         raise NFieldError(f"face {face} is excluded from the field (degenerate: zero area, repeated vertex, "
                           f"needle or duplicate face): it cannot carry a constraint")
     normal = arrays.polygon_normals[face]
-    if np.linalg.norm(dn - normal * float(dn @ normal)) < 1e-6 * length:
+    if np.linalg.norm(dn - normal * float(dn @ normal)) < TANGENT_TOLERANCE * length:
         raise NFieldError(f"direction {list(d)} of the constraint on face {face} is parallel to the face normal "
                           f"(it has no tangent component)")
-    st = obj.nfield
-    item = next((c for c in st.constraints if c.face == face and not c.stale), None)
-    if item is None:
-        item = st.constraints.add()
-        st.active_constraint_index = len(st.constraints) - 1
-    item.face = face
-    item.direction = d
-    item.kind = kind_u
-    item.stale = False
-    item.centroid = arrays.polygon_centers[face]
-    return item
-
-
-def _index_of(items, key: str, value) -> int | None:
-    """Index of the live item whose `key` (face / vertex) is `value`, else of a stale one, else None."""
-    idx = next((i for i, it in enumerate(items) if getattr(it, key) == value and not it.stale), None)
-    if idx is None:
-        idx = next((i for i, it in enumerate(items) if getattr(it, key) == value), None)
-    return idx
-
-
-def _clamped_index(index: int, items) -> int:
-    """`index` moved inside `items` (0 when empty): a list's active index after an item was removed."""
-    return max(0, min(index, len(items) - 1))
+    return design.set_constraint(obj, face, d, kind_u, arrays.polygon_centers[face])
 
 
 def remove_constraint(obj, face: int) -> None:
     """Remove the constraint on polygon `face` (a stale one with that face number if no live one)."""
-    _check_object(obj)
-    st = obj.nfield
-    idx = _index_of(st.constraints, "face", face)
-    if idx is None:
-        faces = sorted(c.face for c in st.constraints)
-        raise NFieldError(f"face {face} has no constraint (constrained faces: {faces or 'none'})")
-    st.constraints.remove(idx)
-    st.active_constraint_index = _clamped_index(st.active_constraint_index, st.constraints)
+    check_mesh_object(obj)
+    design.remove_constraint(obj, face)
 
 
 def clear_constraints(obj, stale_only: bool = False) -> int:
     """Remove all constraints (or only the stale ones). Returns how many were removed."""
-    _check_object(obj)
-    st = obj.nfield
-    removed = 0
-    for i in reversed(range(len(st.constraints))):
-        if not stale_only or st.constraints[i].stale:
-            st.constraints.remove(i)
-            removed += 1
-    st.active_constraint_index = 0
-    return removed
+    check_mesh_object(obj)
+    return design.clear_constraints(obj, stale_only)
 
 
 def add_singularity(obj, vertex: int, index: float):
@@ -280,7 +192,7 @@ def add_singularity(obj, vertex: int, index: float):
     except (TypeError, ValueError):
         raise NFieldError(f"singularity index must be a number, got {index!r}") from None
     num = x * n
-    if not math.isfinite(num) or abs(num - round(num)) > 1e-9:
+    if not math.isfinite(num) or abs(num - round(num)) > INDEX_TOLERANCE:
         raise NFieldError(f"singularity index {index!r} at vertex {vertex} is not a multiple of 1/{n} "
                           f"(for n = {n} use k/{n}, e.g. {round(num) / n!r})")
     if round(num) == 0:
@@ -290,22 +202,12 @@ def add_singularity(obj, vertex: int, index: float):
         raise NFieldError(f"vertex {vertex} cannot carry index {round(num)}/{n}: the indices it can carry are "
                           f"{lo}/{n} .. {hi}/{n} (|index - K/2pi| < k/(2n) for its ring of k faces and angle "
                           f"defect K)")
-    item = next((s for s in st.singularities if s.vertex == vertex and not s.stale), None)
-    if item is None:
-        item = st.singularities.add()
-        st.active_singularity_index = len(st.singularities) - 1
-    item.vertex = vertex
-    item.numerator = int(round(num))
-    item.stale = False
-    item.position = arrays.vertices[vertex]
-    return item
+    return design.set_singularity(obj, vertex, int(round(num)), arrays.vertices[vertex])
 
 
 def _numerator_range(obj, arrays, vertex: int, n: int) -> tuple[int, int]:
     """The index numerators (index = numerator / n) vertex can carry, from the solver's own rule
     (nfield._native.singularity_numerator_range). NFieldError for a boundary / non-manifold / unused vertex."""
-    from ..core import native
-
     entry = session_cache.get_entry(obj, arrays)
     key = ("index_operators", n)
     ops = entry.extra.get(key)
@@ -324,23 +226,15 @@ def _numerator_range(obj, arrays, vertex: int, n: int) -> tuple[int, int]:
 
 
 def remove_singularity(obj, vertex: int) -> None:
-    _check_object(obj)
-    st = obj.nfield
-    idx = _index_of(st.singularities, "vertex", vertex)
-    if idx is None:
-        verts = sorted(s.vertex for s in st.singularities)
-        raise NFieldError(f"vertex {vertex} has no prescribed singularity (pinned vertices: {verts or 'none'})")
-    st.singularities.remove(idx)
-    st.active_singularity_index = _clamped_index(st.active_singularity_index, st.singularities)
+    """Remove the singularity pinned at `vertex` (a stale one with that vertex number if no live one)."""
+    check_mesh_object(obj)
+    design.remove_singularity(obj, vertex)
 
 
 def clear_singularities(obj) -> int:
-    _check_object(obj)
-    st = obj.nfield
-    k = len(st.singularities)
-    st.singularities.clear()
-    st.active_singularity_index = 0
-    return k
+    """Remove every pinned singularity. Returns how many were removed."""
+    check_mesh_object(obj)
+    return design.clear_singularities(obj)
 
 
 # ------------------------------------------------------------------------------------------ solving
@@ -352,9 +246,7 @@ def solve(obj, *, n: int | None = None, order: int | None = None, align: str | N
     Writes the output attributes when `write` is True (default: the object's Write Attributes setting).
     Returns the nfield.core.FieldResult (per polygon; object space).
     """
-    from . import background
-
-    if background.busy(obj):
+    if jobs.busy(obj):
         raise NFieldError(f"'{obj.name}' is being solved in the background: wait for it to finish or press Esc")
     arrays, _ = sync(obj)  # first: a mesh change remaps the design before anything is saved
     saved = snapshot(obj)
@@ -375,38 +267,10 @@ def solve(obj, *, n: int | None = None, order: int | None = None, align: str | N
         restore(obj, saved)
         obj.nfield.last_message = f"Solve failed: {exc}"
         raise
-    _store_result(obj, entry, result)
+    store_result(obj, entry, result)
     if write if write is not None else st.write_attributes:
         attributes.write(obj, arrays, result, st.n)
     return result
-
-
-def _store_result(obj, entry, result) -> None:
-    st = obj.nfield
-    entry.result = result
-    entry.version += 1
-    st.last_solve_seconds = float(getattr(result, "seconds", 0.0))
-    st.last_energy = float(getattr(result, "energy", 0.0))
-    stale = stale_items(obj)
-    st.last_message = (f"Solved: {len(result.singularities)} singularities"
-                       + (f"; {len(stale)} stale item(s) ignored" if stale else ""))
-    session = getattr(entry, "session", None)
-    st.spectral_ready = bool(session is not None and session.has_basis)
-    notify_overlay(obj, result)
-
-
-def notify_overlay(obj, result=None) -> None:
-    """Tell the viewport overlay (if loaded) that the field or design of `obj` changed."""
-    try:
-        from . import overlay
-    except ImportError:
-        return
-    refresh = getattr(overlay, "refresh", None)
-    if refresh is not None:
-        try:
-            refresh(obj, result)
-        except Exception as exc:  # noqa: BLE001 - drawing problems must not break solving
-            print(f"nfield: overlay refresh failed: {exc}")
 
 
 def field(obj):
@@ -427,35 +291,23 @@ def write_attributes(obj, result=None) -> list[str]:
 
 # ------------------------------------------------------------------------------------------ regions
 def _session_with_field(obj):
-    arrays, _ = sync(obj)
-    entry = session_cache.get_entry(obj, arrays)
-    session = session_cache.ensure_session(obj, entry)
+    arrays, entry, session = open_session(obj)
     if session.field is None:
         try:
-            _store_result(obj, entry, session.solve())
+            store_result(obj, entry, session.solve())
         except (ValueError, RuntimeError) as exc:
             raise NFieldError(str(exc)) from None
     return arrays, entry, session
 
 
-def selected_faces(obj) -> list[int]:
-    """Indices of the selected polygons (edit-mode selection is read through update_from_editmode)."""
-    if obj.mode == "EDIT":
-        obj.update_from_editmode()
-    me = obj.data
-    sel = np.zeros(len(me.polygons), dtype=bool)
-    me.polygons.foreach_get("select", sel)
-    return np.flatnonzero(sel).tolist()
-
-
 def begin_region(obj, faces: Iterable[int] | None = None) -> int:
     """Start a region edit on `faces` (default: the selected polygons): later edits change only those faces.
     Returns the number of region faces."""
-    _check_object(obj)
+    check_mesh_object(obj)
     st = obj.nfield
     if st.region_active:
         raise NFieldError("a region edit is already in progress: commit or cancel it first")
-    faces = selected_faces(obj) if faces is None else [int(f) for f in faces]
+    faces = mesh_read.selected_polygons(obj) if faces is None else [int(f) for f in faces]
     if not faces:
         raise NFieldError("the region is empty: select faces in edit mode (or pass face indices)")
     arrays, entry, session = _session_with_field(obj)
@@ -465,18 +317,15 @@ def begin_region(obj, faces: Iterable[int] | None = None) -> int:
         session.begin_region(faces)
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
-    st.region_faces.clear()
-    for f in faces:
-        st.region_faces.add().face = f
-    st.region_active = True
-    entry.extra["region_saved_design"] = _snapshot_design(st)
-    entry.extra["design_state"] = session_cache.design_state(obj)
+    design.start_region(obj, faces)
+    entry.extra["region_saved_design"] = design.snapshot_design(obj)
+    entry.extra["design_state"] = design.design_state(obj)
     return len(faces)
 
 
 def commit_region(obj):
     """Make the region's field a layer (frozen in later global solves). Returns the new NFieldLayer."""
-    _check_object(obj)
+    check_mesh_object(obj)
     st = obj.nfield
     if not st.region_active:
         raise NFieldError("no region edit in progress (begin a region first)")
@@ -486,29 +335,22 @@ def commit_region(obj):
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
     result = session.field if session.field is not None else entry.result
-    _store_result(obj, entry, result)
+    store_result(obj, entry, result)
     faces = [it.face for it in st.region_faces]
-    layer = st.layers.add()
-    layer.name = f"Layer {len(st.layers)}"
     # frozen value per face: first direction scaled by |raw solution| of the face's first triangle
     # (object space; DesignSession.restore_layer maps it back to the representation vector)
     dirs = np.asarray(result.directions)
     mags = np.abs(entry.mesh.per_face(np.asarray(result.raw_solution)))
-    for f in faces:
-        item = layer.faces.add()
-        item.face = f
-        item.value = dirs[f] * mags[f]
+    layer = design.add_layer(obj, faces, [dirs[f] * mags[f] for f in faces])
     entry.extra.pop("region_saved_design", None)
-    st.region_active = False
-    st.region_faces.clear()
-    st.active_layer_index = len(st.layers) - 1
-    entry.extra["design_state"] = session_cache.design_state(obj)
+    design.end_region(obj)
+    entry.extra["design_state"] = design.design_state(obj)
     return layer
 
 
 def cancel_region(obj) -> None:
     """Drop the region edit: back to the field before begin_region."""
-    _check_object(obj)
+    check_mesh_object(obj)
     st = obj.nfield
     if not st.region_active:
         raise NFieldError("no region edit in progress")
@@ -517,55 +359,32 @@ def cancel_region(obj) -> None:
         session.cancel_region()
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
-    st.region_active = False
-    st.region_faces.clear()
+    design.end_region(obj)
     saved = entry.extra.pop("region_saved_design", None)
     if saved is not None:  # the stored design goes back to its state before begin_region, like the session
-        _restore_design(st, saved)
-    entry.extra["design_state"] = session_cache.design_state(obj)
+        design.restore_design(obj, saved)
+    entry.extra["design_state"] = design.design_state(obj)
     if session.field is not None:
-        _store_result(obj, entry, session.field)
-
-
-def _snapshot_design(st) -> tuple:
-    cons = [(c.face, tuple(c.direction), c.kind, c.stale, tuple(c.centroid)) for c in st.constraints]
-    sings = [(s.vertex, s.numerator, s.stale, tuple(s.position)) for s in st.singularities]
-    return cons, sings
-
-
-def _restore_design(st, saved: tuple) -> None:
-    cons, sings = saved
-    st.constraints.clear()
-    for face, d, kind, stale, centroid in cons:
-        c = st.constraints.add()
-        c.face, c.direction, c.kind, c.stale, c.centroid = face, d, kind, stale, centroid
-    st.singularities.clear()
-    for vertex, num, stale, pos in sings:
-        s = st.singularities.add()
-        s.vertex, s.numerator, s.stale, s.position = vertex, num, stale, pos
-    st.active_constraint_index = _clamped_index(st.active_constraint_index, st.constraints)
-    st.active_singularity_index = _clamped_index(st.active_singularity_index, st.singularities)
+        store_result(obj, entry, session.field)
 
 
 def release_layer(obj, index: int) -> None:
     """Drop committed layer `index`: its faces follow the global solve again."""
-    _check_object(obj)
+    check_mesh_object(obj)
     st = obj.nfield
     if not 0 <= int(index) < len(st.layers):
         raise NFieldError(f"layer {index} does not exist (the object has {len(st.layers)} layers)")
     layer = st.layers[int(index)]
     if not layer.stale:
         arrays, entry, session = _session_with_field(obj)
-        live = [i for i, l in enumerate(st.layers) if not l.stale]
         try:
-            session.release_layer(live.index(int(index)))
+            session.release_layer(design.live_layer_position(obj, index))
         except (ValueError, IndexError) as exc:
             raise NFieldError(str(exc)) from None
-        st.layers.remove(int(index))
-        entry.extra["design_state"] = session_cache.design_state(obj)
+        design.remove_layer(obj, index)
+        entry.extra["design_state"] = design.design_state(obj)
     else:
-        st.layers.remove(int(index))
-    st.active_layer_index = _clamped_index(st.active_layer_index, st.layers)
+        design.remove_layer(obj, index)
 
 
 # ------------------------------------------------------------------------------------------ spectral
@@ -582,26 +401,49 @@ def precompute_spectral(obj, k: int | None = None, progress=None):
         raise
 
 
-# ------------------------------------------------------------------------------------------ applications
-def build_anisotropic_material(obj, *, anisotropy: float | None = None, direction: str | None = None,
-                               source: str | None = None, material: str | None = None, roughness: float = 0.25,
-                               metallic: float = 1.0, base_color=(0.8, 0.8, 0.82, 1.0), write: bool = True):
-    """Create or update a material whose anisotropic reflection follows the field (Cycles; EEVEE ignores
-    anisotropy). anisotropy: 0..1; direction: "field" or "perpendicular" (n = 2, 4); source: "face" or
-    "point" attribute (None keeps the material's setting; new: 0.8, "field", "face"); material: an existing
-    material to update (default: the object's nfield material, created if needed). Returns the bpy
-    Material. See nfield.blender.material."""
-    from . import material as _material
-
-    return _material.build(obj, anisotropy=anisotropy, direction=direction, source=source, material=material,
-                           roughness=roughness, metallic=metallic, base_color=base_color, write=write)
+# ------------------------------------------------------------------------------------------ for the add-on
+# Not part of the scripting API: what the operators, the modal tools and the handlers need beyond it.
+def synced_entry(obj):
+    """(MeshArrays, session cache entry) of `obj` after a sync: ``entry.mesh`` is the core Mesh of the current
+    mesh, ``entry.result`` its last field (None if none since the mesh changed). Builds no session."""
+    arrays, _ = sync(obj)
+    return arrays, session_cache.get_entry(obj, arrays)
 
 
-def build_hatching(obj, **kwargs):
-    """Trace hatching strokes along the field (nfield.core.trace_streamlines) and write them as a curves
-    object parented to `obj` (created or updated). Returns the curves object. Keyword arguments: see
-    nfield.blender.hatching.build (spacing, family, cross_hatch, seed, max_length, min_length, radius,
-    density, name, material)."""
-    from . import hatching as _hatching
+def open_session(obj):
+    """(MeshArrays, session cache entry, DesignSession) of `obj` after a sync, matching its settings and
+    design. The session may still have to factor or compute a basis (see pending_work). Callers that may
+    run while a worker thread owns the session check ``jobs.busy(obj)`` first."""
+    arrays, entry = synced_entry(obj)
+    return arrays, entry, session_cache.ensure_session(obj, entry)
 
-    return _hatching.build(obj, **kwargs)
+
+def pending_work(obj) -> str | None:
+    """What the next solve of `obj` must compute first: "factorization", "basis" or None."""
+    return open_session(obj)[2].pending_work()
+
+
+def adopt_result(obj, entry, arrays, result) -> None:
+    """A worker thread solved `entry`'s session: record `result` and write the attributes (if set to)."""
+    store_result(obj, entry, result)
+    if obj.nfield.write_attributes:
+        attributes.write(obj, arrays, result, obj.nfield.n)
+
+
+def background_recipe(obj):
+    """(MeshArrays, entry, recipe) for building `obj`'s session in a worker thread (session_cache.build_session,
+    which reads no Blender data), after a sync. Adopt the outcome with adopt_session."""
+    arrays, entry = synced_entry(obj)
+    return arrays, entry, session_cache.session_recipe(obj, entry)
+
+
+def build_from_recipe(recipe: dict, progress=None):
+    """In a worker thread: build and solve the session a recipe describes (reads no Blender data).
+    Returns (session, result)."""
+    return session_cache.build_session(recipe, progress)
+
+
+def adopt_session(obj, entry, arrays, recipe, session, result) -> None:
+    """Install a session built from background_recipe and record its first result."""
+    session_cache.install_session(obj, entry, recipe, session)
+    adopt_result(obj, entry, arrays, result)

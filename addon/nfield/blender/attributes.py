@@ -15,13 +15,14 @@ edit mode.
 """
 from __future__ import annotations
 
+import bmesh
 import numpy as np
 
 from ..core import shading
 
 
 def field_arrays(arrays, result, n: int) -> dict:
-    """The three attribute arrays for a FieldResult on the mesh described by `arrays` (session_cache.MeshArrays)."""
+    """The three attribute arrays for a FieldResult on the mesh described by `arrays` (mesh_read.MeshArrays)."""
     poly_dirs = shading.polygon_tangent_directions(np.asarray(result.directions), arrays.polygon_normals)
     tri_dirs = poly_dirs[arrays.triangle_polygon]
     smooth = shading.vertex_smoothed_directions(arrays.vertices, arrays.triangles, tri_dirs, n)
@@ -62,8 +63,6 @@ def _ensure_attribute(me, name, domain, dtype):
 
 
 def _write_bmesh(obj, jobs) -> None:
-    import bmesh
-
     me = obj.data
     bm = bmesh.from_edit_mesh(me)
     for name, domain, dtype, values in jobs:

@@ -1,4 +1,5 @@
-"""Long solver work off the UI thread: ``nfield.solve_background``.
+"""Long solver work off the UI thread: the modal operators ``nfield.solve_background`` and
+``nfield.precompute_spectral``.
 
 A solve that must first factor (new settings, first solve, a region edit) takes about a second per 100k
 faces, minutes for a spectral basis. In an interactive Blender the Solve button, live updates after a
@@ -7,8 +8,12 @@ worker thread (the native code releases the GIL), the status bar shows it, Esc c
 keeps its previous state), and the result is stored and written when it is done. Fast incremental solves
 stay synchronous. In background Blender (``blender -b``, PyPI ``bpy``) everything is synchronous.
 
-While a worker owns an object's session, nothing else may touch that session: ``busy(obj)`` says so; the
-api refuses to solve it (NFieldError) and live updates are deferred until the worker is done.
+While a worker owns an object's session, nothing else may touch that session: ``jobs.busy(obj)`` says so;
+the api refuses to solve it (NFieldError) and live updates are deferred until the worker is done.
+
+``nfield.precompute_spectral`` computes the spectral basis (k eigenfields, minutes on large meshes) the same
+way when invoked from the UI (progress in the status bar, Esc cancels and restores the previous settings);
+executed from a script it blocks.
 """
 from __future__ import annotations
 
@@ -16,40 +21,13 @@ import threading
 import time
 
 import bpy
+from bpy.props import IntProperty, StringProperty
 
-from . import session_cache
+from . import api, jobs
+from .operator_base import NFieldObjectOperator
 
-#: object name -> the running operator's shared state
-_running: dict[str, dict] = {}
 #: the last background solve (scripts and tests): state "running" | "finished" | "cancelled" | "failed"
 status: dict = {"state": "idle", "object": "", "work": "", "message": "", "thread": "", "seconds": 0.0}
-
-
-def busy(obj) -> bool:
-    """True while a worker thread solves `obj`'s session."""
-    return getattr(obj, "name", None) in _running
-
-
-def interactive() -> bool:
-    """True in a Blender with windows (background work makes sense only there)."""
-    return not bpy.app.background and bool(getattr(bpy.context.window_manager, "windows", None))
-
-
-def start_later(obj_name: str) -> None:
-    """Invoke the background solve for an object from a timer (safe from property update callbacks)."""
-
-    def launch():
-        obj = bpy.data.objects.get(obj_name)
-        wm = bpy.context.window_manager
-        if obj is None or busy(obj) or not wm.windows:
-            return None
-        win = wm.windows[0]
-        area = next((a for a in win.screen.areas if a.type == "VIEW_3D"), win.screen.areas[0])
-        with bpy.context.temp_override(window=win, area=area, screen=win.screen, object=obj, active_object=obj):
-            bpy.ops.nfield.solve_background("INVOKE_DEFAULT", object_name=obj_name)
-        return None
-
-    bpy.app.timers.register(launch, first_interval=0.0)
 
 
 class NFIELD_OT_solve_background(bpy.types.Operator):
@@ -59,25 +37,21 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
     bl_label = "Solve Field (Background)"
     bl_options = {"REGISTER", "UNDO"}
 
-    object_name: bpy.props.StringProperty(name="Object", default="", description="Default: the active object")
+    object_name: StringProperty(name="Object", default="", description="Default: the active object")
 
     def execute(self, context):  # scripts: the plain, blocking solve
         return bpy.ops.nfield.solve()
 
     def invoke(self, context, event):
-        from . import api
-
         obj = bpy.data.objects.get(self.object_name) if self.object_name else context.active_object
         if obj is None or obj.type != "MESH":
             self.report({"ERROR"}, "no mesh object to solve")
             return {"CANCELLED"}
-        if busy(obj):
+        if jobs.busy(obj):
             self.report({"INFO"}, f"nfield: '{obj.name}' is already being solved in the background")
             return {"CANCELLED"}
         try:
-            arrays, _ = api.sync(obj)
-            entry = session_cache.get_entry(obj, arrays)
-            session = session_cache.ensure_session(obj, entry)
+            arrays, entry, session = api.open_session(obj)
             work = session.pending_work() or "solve"
         except (ValueError, RuntimeError, MemoryError) as exc:
             self.report({"ERROR"}, str(exc))
@@ -97,7 +71,7 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
                 session.progress = None
 
         self._obj_name, self._entry, self._arrays, self._shared = obj.name, entry, arrays, shared
-        _running[obj.name] = shared
+        jobs.claim(obj.name, shared)
         thread = threading.Thread(target=work_fn, name="nfield-solve", daemon=True)
         status.update(state="running", object=obj.name, work=work, message="", thread=thread.name, seconds=0.0)
         self._thread = thread
@@ -123,11 +97,9 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
         return self._finish(context)
 
     def _finish(self, context):
-        from . import api, attributes
-
         context.window_manager.event_timer_remove(self._timer)
         self._status(context, None)
-        shared = _running.pop(self._obj_name, self._shared)
+        shared = jobs.release(self._obj_name, self._shared)
         seconds = time.perf_counter() - shared["t0"]
         outcome = shared["outcome"] or ("error", RuntimeError("the solver thread ended without a result"))
         obj = bpy.data.objects.get(self._obj_name)
@@ -142,24 +114,124 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
         if obj is None:
             status.update(state="failed", message="the object was deleted", seconds=seconds)
             return {"CANCELLED"}
-        result = outcome[1]
-        api._store_result(obj, self._entry, result)
-        if obj.nfield.write_attributes:
-            attributes.write(obj, self._arrays, result, obj.nfield.n)
+        api.adopt_result(obj, self._entry, self._arrays, outcome[1])
         message = f"nfield: solved '{obj.name}' in {seconds:.1f} s ({status['work']})"
         status.update(state="finished", message=message, seconds=seconds)
         self.report({"INFO"}, message)
         if shared.get("again"):  # settings changed while the worker ran
-            start_later(obj.name)
+            jobs.start_later(obj.name)
         return {"FINISHED"}
 
 
-def defer(obj) -> None:
-    """A live update arrived while `obj` is being solved: solve again when the worker is done."""
-    shared = _running.get(obj.name)
-    if shared is not None:
-        shared["again"] = True
+#: State of the last background precompute (read by scripts and tests; the UI shows progress in the
+#: status bar): state is "idle", "running", "cancelled", "failed" or "finished".
+#: ui_updates counts the progress updates the UI made while the worker ran (the UI stayed responsive).
+precompute_status: dict = {"state": "idle", "object": "", "k": 0, "fraction": 0.0, "message": "", "ui_updates": 0}
 
 
-classes = (NFIELD_OT_solve_background,)
+class NFIELD_OT_precompute_spectral(NFieldObjectOperator, bpy.types.Operator):
+    """Compute the spectral basis (k lowest eigenfields) in the background; Esc cancels"""
+
+    bl_idname = "nfield.precompute_spectral"
+    bl_label = "Precompute Spectral Basis"
+    bl_options = {"REGISTER"}  # the basis lives in memory; the mode switch is a setting
+
+    k: IntProperty(name="Eigenfields", default=0, min=0, description="0: the object's Eigenfields setting")
+
+    _thread = None
+    _timer = None
+
+    def execute(self, context):
+        # scripts / background mode: blocking
+        return self.run(context, lambda obj: f"nfield: spectral basis ready "
+                        f"({api.precompute_spectral(obj, self.k or None).num_faces} faces)")
+
+    def invoke(self, context, event):
+        obj = context.active_object
+        if self.report_native_error():
+            return {"CANCELLED"}
+        self._previous = (obj.nfield.solver_mode, obj.nfield.spectral_k)
+        try:
+            api.configure(obj, mode="spectral", k=self.k or None)
+            arrays, self._entry, self._recipe = api.background_recipe(obj)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._obj_name = obj.name
+        self._arrays = arrays
+        self._fraction = 0.0
+        self._cancel = False
+        self._outcome = None
+        precompute_status.update(state="running", object=obj.name, k=int(obj.nfield.spectral_k), fraction=0.0,
+                                 message="", ui_updates=0)
+        self._thread = threading.Thread(target=self._work, daemon=True)
+        self._thread.start()
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _progress(self, fraction):
+        self._fraction = float(fraction)
+        precompute_status["fraction"] = self._fraction
+        return not self._cancel
+
+    def _work(self):
+        try:
+            self._outcome = ("ok",) + api.build_from_recipe(self._recipe, self._progress)
+        except BaseException as exc:  # noqa: BLE001 - reported in the main thread
+            self._outcome = ("error", exc)
+
+    def modal(self, context, event):
+        wm = context.window_manager
+        if event.type == "ESC":
+            self._cancel = True
+        if event.type != "TIMER":
+            if not self._thread.is_alive():
+                return self._finish(context)
+            # other events go on to Blender: the viewport stays usable during the computation
+            return {"RUNNING_MODAL"} if event.type == "ESC" else {"PASS_THROUGH"}
+        wm.progress_update(int(100 * self._fraction))
+        if self._thread.is_alive():
+            precompute_status["ui_updates"] += 1
+        if context.workspace is not None:
+            state = "cancelling" if self._cancel else f"{100 * self._fraction:.0f}%"
+            context.workspace.status_text_set(f"nfield: computing spectral basis ({state}), Esc to cancel")
+        if self._thread.is_alive():
+            return {"RUNNING_MODAL"}
+        return self._finish(context)
+
+    def _finish(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        outcome = self._outcome or ("error", RuntimeError("worker ended without a result"))
+        obj = bpy.data.objects.get(self._obj_name)
+        if self._cancel or outcome[0] == "error":
+            if obj is not None:
+                api.configure(obj, mode=self._previous[0], k=self._previous[1])
+            if self._cancel:
+                precompute_status.update(state="cancelled", message="cancelled")
+                self.report({"WARNING"}, "nfield: spectral basis computation cancelled")
+            else:
+                precompute_status.update(state="failed", message=str(outcome[1]))
+                self.report({"ERROR"}, f"nfield: spectral basis failed: {outcome[1]}")
+            return {"CANCELLED"}
+        if obj is None:
+            precompute_status.update(state="failed", message="the object was deleted")
+            return {"CANCELLED"}
+        _, session, result = outcome
+        api.adopt_session(obj, self._entry, self._arrays, self._recipe, session, result)
+        info = session.basis_info
+        message = (f"nfield: spectral basis ready ({info.k} eigenfields, {info.source}, "
+                   f"{info.seconds:.1f} s, {info.memory_bytes / 2**20:.0f} MB)")
+        precompute_status.update(state="finished", fraction=1.0, message=message)
+        self.report({"INFO"}, message)
+        return {"FINISHED"}
+
+
+classes = (NFIELD_OT_solve_background, NFIELD_OT_precompute_spectral)
 register, unregister = bpy.utils.register_classes_factory(classes)

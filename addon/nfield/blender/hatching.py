@@ -29,8 +29,11 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 
-from .operators import _NFieldObjectOperator
-from .session_cache import NFieldError
+from ..core import trace_streamlines
+from . import api, mesh_read
+from .errors import NFieldError
+from .material import ensure_nodes
+from .operator_base import NFieldObjectOperator
 
 __all__ = ["build", "strokes_to_object", "density_values", "NFIELD_OT_hatching", "register", "unregister"]
 
@@ -53,27 +56,15 @@ def density_values(obj, density) -> np.ndarray | None:
     me = obj.data
     nv = len(me.vertices)
     if isinstance(density, str):
-        vg = obj.vertex_groups.get(density)
-        if vg is not None:
-            out = np.zeros(nv, dtype=np.float64)
-            gi = vg.index
-            for v in me.vertices:
-                for g in v.groups:
-                    if g.group == gi:
-                        out[v.index] = g.weight
-                        break
-            return out
+        weights = mesh_read.vertex_group_weights(obj, density)
+        if weights is not None:
+            return weights
         attr = me.attributes.get(density)
         if attr is not None:
             if attr.domain != "POINT" or attr.data_type not in ("FLOAT", "INT", "BOOLEAN"):
                 raise NFieldError(f"density attribute '{density}' must be a point FLOAT attribute "
                                   f"(it is {attr.domain.lower()} {attr.data_type})")
-            if attr.data_type == "FLOAT":
-                buf = np.empty(nv, dtype=np.float32)
-                attr.data.foreach_get("value", buf)
-            else:
-                buf = np.array([d.value for d in attr.data], dtype=np.float32)
-            return buf.astype(np.float64)
+            return mesh_read.attribute_values(obj, density, "POINT", attr.data_type)
         groups = [g.name for g in obj.vertex_groups]
         attrs = [a.name for a in me.attributes if a.domain == "POINT" and a.data_type == "FLOAT"
                  and not a.name.startswith(".")]
@@ -113,12 +104,7 @@ def strokes_to_object(obj, points: Sequence, *, faces=None, family=None, radius:
     legacy: force the legacy Curve type (None: the new Curves type where available). Returns the object."""
     if radius <= 0 or not np.isfinite(radius):
         raise NFieldError(f"stroke radius must be > 0 (got {radius!r})")
-    normals = None
-    if faces is not None and lift:
-        me = obj.data
-        normals = np.empty(len(me.polygons) * 3, dtype=np.float32)
-        me.polygons.foreach_get("normal", normals)
-        normals = normals.reshape(-1, 3).astype(np.float64)
+    normals = mesh_read.mesh_arrays(obj).polygon_normals if faces is not None and lift else None
     pts, keep = _stroke_arrays(points, faces, normals, float(radius), float(lift))
     fam = np.zeros(len(pts), dtype=np.int32)
     if family is not None:
@@ -190,8 +176,6 @@ def ink_material(name: str = "nfield Ink", color=(0.02, 0.02, 0.025, 1.0)):
     mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
-    from .material import ensure_nodes
-
     mat = bpy.data.materials.new(name)
     mat.diffuse_color = color
     ensure_nodes(mat)
@@ -208,16 +192,6 @@ def ink_material(name: str = "nfield Ink", color=(0.02, 0.02, 0.025, 1.0)):
 
 
 # ------------------------------------------------------------------------------------------ tracing
-def _tracer():
-    try:
-        from ..core import trace_streamlines
-    except ImportError:
-        trace_streamlines = None
-    if trace_streamlines is None:
-        raise NFieldError("this build of nfield has no streamline tracer (nfield.core.trace_streamlines)")
-    return trace_streamlines
-
-
 def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = False, seed: int = 0,
           max_length: float | None = None, min_length: float | None = None, radius: float | None = None,
           density=None, lift: float = 1.0, name: str | None = None, material=None, legacy: bool | None = None):
@@ -232,17 +206,12 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
     bpy Material for the strokes (default: a dark "nfield Ink" material for a new object). Returns the
     curves object (custom properties nfield_strokes, nfield_points).
     """
-    from . import api, session_cache
-
-    api._check_object(obj)
-    trace = _tracer()
+    api.check_mesh_object(obj)
     sp = float(spacing)
     if not np.isfinite(sp) or sp <= 0:
         raise NFieldError(f"spacing must be > 0 (a fraction of the bounding-box diagonal; got {spacing!r})")
-    arrays, _ = api.sync(obj)
-    entry = session_cache.get_entry(obj, arrays)
+    arrays, entry = api.synced_entry(obj)
     result = entry.result if entry.result is not None else api.solve(obj)
-    entry = session_cache.get_entry(obj, arrays)
     dens = density_values(obj, density)
     if dens is not None:
         dens = np.clip(dens, 0.0, 1.0)  # the tracer takes [0, 1]: d_sep / max(density, 0.1)
@@ -251,25 +220,21 @@ def build(obj, *, spacing: float = 0.01, family: int = 0, cross_hatch: bool = Fa
     if dens is not None:
         kwargs["density"] = dens
     try:
-        strokes = trace(entry.mesh, result, **kwargs)
+        strokes = trace_streamlines(entry.mesh, result, **kwargs)
     except (ValueError, RuntimeError) as exc:
         raise NFieldError(f"tracing strokes failed: {exc}") from None
     diag = float(np.linalg.norm(arrays.vertices.max(0) - arrays.vertices.min(0)))
     r = float(radius) if radius else 0.1 * sp * diag
-    points = list(getattr(strokes, "points", strokes))
-    faces = getattr(strokes, "faces", None)  # per-point triangles of the core mesh -> polygons
-    if faces is not None:
-        tri_poly = np.asarray(entry.mesh.triangle_face, dtype=np.int64)
-        faces = [tri_poly[np.asarray(f, dtype=np.int64)] for f in faces]
-    fam = getattr(strokes, "families", None)
+    tri_poly = np.asarray(entry.mesh.triangle_face, dtype=np.int64)  # per-point triangles -> polygons
+    faces = [tri_poly[np.asarray(f, dtype=np.int64)] for f in strokes.faces]
     if material is None and bpy.data.objects.get(name or f"{obj.name} Hatching") is None:
         material = ink_material()
-    return strokes_to_object(obj, points, faces=faces, family=fam, radius=r, lift=lift, name=name,
-                             material=material, legacy=legacy)
+    return strokes_to_object(obj, strokes.points, faces=faces, family=strokes.families, radius=r, lift=lift,
+                             name=name, material=material, legacy=legacy)
 
 
 # ------------------------------------------------------------------------------------------ operator
-class NFIELD_OT_hatching(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_hatching(NFieldObjectOperator, bpy.types.Operator):
     """Trace evenly spaced strokes along the field and write them as a curves object parented to the mesh
     (render with Cycles or convert to Grease Pencil)"""
 

@@ -25,11 +25,14 @@ The nodes this module adds are named ``nfield ...`` so that updating a material 
 """
 from __future__ import annotations
 
+import warnings
+
 import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 
-from .operators import _NFieldObjectOperator
-from .session_cache import NFieldError
+from . import api
+from .errors import NFieldError
+from .operator_base import NFieldObjectOperator
 
 __all__ = ["build", "find_socket", "ensure_nodes", "NFIELD_OT_material_anisotropic", "register", "unregister"]
 
@@ -144,9 +147,7 @@ def build(obj, *, anisotropy: float | None = None, direction: str | None = None,
     write: write the attributes first if the chosen one is missing (solving if needed).
     Raises NFieldError (a ValueError) with a message naming the problem.
     """
-    from . import api
-
-    api._check_object(obj)
+    api.check_mesh_object(obj)
     st = obj.nfield
     # --- the material (read first: None arguments keep its settings)
     if material:
@@ -259,8 +260,6 @@ def build(obj, *, anisotropy: float | None = None, direction: str | None = None,
 
 def ensure_nodes(mat) -> None:
     """Give `mat` a node tree (Blender < 5: use_nodes = True; 5.0 materials always have one)."""
-    import warnings
-
     with warnings.catch_warnings():  # Material.use_nodes is deprecated in Blender 5.0 (always on there)
         warnings.simplefilter("ignore", DeprecationWarning)
         if mat.node_tree is None or not getattr(mat, "use_nodes", True):
@@ -268,7 +267,7 @@ def ensure_nodes(mat) -> None:
 
 
 # ------------------------------------------------------------------------------------------ operator
-class NFIELD_OT_material_anisotropic(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_material_anisotropic(NFieldObjectOperator, bpy.types.Operator):
     """Create or update a material whose anisotropic reflection follows the field (rendered by Cycles;
     EEVEE ignores anisotropy)"""
 

@@ -3,87 +3,18 @@
 All operators act on the active object, take explicit arguments for scripting, report problems with
 ``self.report({'ERROR'}, ...)`` (a RuntimeError carrying the message when called from Python), and register
 one undo step (``bl_options = {'REGISTER', 'UNDO'}``). Edit operators re-solve when the object's *Live
-Update* setting is on. ``nfield.precompute_spectral`` runs the eigenbasis computation in a worker thread
-(modal, progress in the status bar, Esc cancels) when invoked from the UI, and blocks when executed from a
-script.
+Update* setting is on. The two operators that run solver work in a worker thread (``solve_background``,
+``precompute_spectral``) are in ``background``; the material, hatching and viewport-tool operators are in
+their own modules.
 """
 from __future__ import annotations
-
-import threading
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatVectorProperty, IntProperty, StringProperty
 
-from . import api, session_cache, state
-from .properties import CONSTRAINT_KIND_ITEMS
-
-
-class _NFieldObjectOperator:
-    """Mixin: poll for an active mesh object; run an api call with error reporting.
-
-    Also used by the material and hatching operators, so every nfield operator reports problems alike."""
-
-    bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        if obj is None:
-            cls.poll_message_set("No active object: select a mesh object")
-            return False
-        if obj.type != "MESH":
-            cls.poll_message_set(f"Active object '{obj.name}' is not a mesh")
-            return False
-        return True
-
-    def report_native_error(self) -> bool:
-        """Report why the compiled solver cannot be loaded; True if it cannot (the operator must cancel)."""
-        problem = state.native_error()
-        if problem is not None:
-            self.report({"ERROR"}, problem)
-        return problem is not None
-
-    #: snapshot the object's settings and design before running and put them back if the operator fails
-    #: (a cancelled operator gets no undo step, so a half-done edit would otherwise stay)
-    keeps_design_on_failure = False
-
-    def run(self, context, fn, *, solve_after: bool = False):
-        """fn(obj) -> message or None, then a re-solve if `solve_after` and Live Update is on.
-
-        Every failure of the core or the compiled solver becomes an ERROR report and {'CANCELLED'}:
-        ValueError (bad input, constraints, parameters: the message as is), RuntimeError (numerical failure,
-        or Cancelled), MemoryError (std::bad_alloc in the solver)."""
-        obj = context.active_object
-        if self.report_native_error():
-            return {"CANCELLED"}
-        saved = None
-        try:
-            if self.keeps_design_on_failure:
-                api.sync(obj)  # a mesh change remaps the design first: that remapping is kept
-                saved = api.snapshot(obj)
-            message = fn(obj)
-            if solve_after and obj.nfield.live_update:
-                api.solve(obj)
-        except (ValueError, RuntimeError, MemoryError) as exc:
-            if saved is not None:
-                api.restore(obj, saved)
-            self.report({"ERROR"}, failure_message(exc))
-            return {"CANCELLED"}
-        if message:
-            self.report({"INFO"}, message)
-        return {"FINISHED"}
-
-
-def failure_message(exc: BaseException) -> str:
-    """The report text for an exception from the core / the compiled solver."""
-    if isinstance(exc, MemoryError):
-        return (f"out of memory in the solver ({exc or 'MemoryError'}): the mesh or the number of constraints is "
-                f"too large for this machine")
-    if type(exc).__name__ == "Cancelled":
-        return f"cancelled: {exc}"
-    if isinstance(exc, ValueError):  # NFieldError and the core's ValueErrors: the message names the problem
-        return str(exc)
-    return f"numerical failure: {exc}"
+from . import api, jobs
+from .choices import CONSTRAINT_KIND_ITEMS
+from .operator_base import NFieldObjectOperator
 
 
 def _active_item(items, active_index: int, what: str):
@@ -94,7 +25,7 @@ def _active_item(items, active_index: int, what: str):
     return items[min(active_index, len(items) - 1)]
 
 
-class NFIELD_OT_solve(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_solve(NFieldObjectOperator, bpy.types.Operator):
     """Solve the n-direction field of the active object with its settings and constraints"""
 
     bl_idname = "nfield.solve"
@@ -113,21 +44,17 @@ class NFIELD_OT_solve(_NFieldObjectOperator, bpy.types.Operator):
 
     def invoke(self, context, event):
         """From the UI: a solve that must factor first runs in the background (nfield.solve_background)."""
-        from . import background
-
         obj = context.active_object
-        if background.interactive() and not self.report_native_error():
+        if jobs.interactive() and not self.report_native_error():
             try:
-                arrays, _ = api.sync(obj)
-                entry = session_cache.get_entry(obj, arrays)
-                if session_cache.ensure_session(obj, entry).pending_work() == "factorization":
+                if api.pending_work(obj) == "factorization":
                     return bpy.ops.nfield.solve_background("INVOKE_DEFAULT", object_name=obj.name)
             except (ValueError, RuntimeError, MemoryError):
                 pass  # execute() reports it
         return self.execute(context)
 
 
-class NFIELD_OT_write_attributes(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_write_attributes(NFieldObjectOperator, bpy.types.Operator):
     """Write the field to the output attributes (face direction, smoothed point direction, singularity index)"""
 
     bl_idname = "nfield.write_attributes"
@@ -138,7 +65,7 @@ class NFIELD_OT_write_attributes(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, lambda obj: "nfield: wrote " + ", ".join(api.write_attributes(obj)))
 
 
-class NFIELD_OT_constraint_add(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_constraint_add(NFieldObjectOperator, bpy.types.Operator):
     """Constrain a face to a direction (object space, projected onto the face)"""
 
     bl_idname = "nfield.constraint_add"
@@ -154,7 +81,7 @@ class NFIELD_OT_constraint_add(_NFieldObjectOperator, bpy.types.Operator):
                         and None, solve_after=True)
 
 
-class NFIELD_OT_constraint_remove(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_constraint_remove(NFieldObjectOperator, bpy.types.Operator):
     """Remove the constraint on a face (default: the active constraint in the list)"""
 
     bl_idname = "nfield.constraint_remove"
@@ -174,7 +101,7 @@ class NFIELD_OT_constraint_remove(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, fn, solve_after=True)
 
 
-class NFIELD_OT_constraint_clear(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_constraint_clear(NFieldObjectOperator, bpy.types.Operator):
     """Remove all constraints (or only the stale ones)"""
 
     bl_idname = "nfield.constraint_clear"
@@ -188,7 +115,7 @@ class NFIELD_OT_constraint_clear(_NFieldObjectOperator, bpy.types.Operator):
                                              f"constraint(s)", solve_after=True)
 
 
-class NFIELD_OT_singularity_add(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_singularity_add(NFieldObjectOperator, bpy.types.Operator):
     """Prescribe a singularity of index numerator/n at an interior vertex"""
 
     bl_idname = "nfield.singularity_add"
@@ -204,7 +131,7 @@ class NFIELD_OT_singularity_add(_NFieldObjectOperator, bpy.types.Operator):
                         and None, solve_after=True)
 
 
-class NFIELD_OT_singularity_remove(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_singularity_remove(NFieldObjectOperator, bpy.types.Operator):
     """Remove the prescribed singularity at a vertex (default: the active one in the list)"""
 
     bl_idname = "nfield.singularity_remove"
@@ -224,7 +151,7 @@ class NFIELD_OT_singularity_remove(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, fn, solve_after=True)
 
 
-class NFIELD_OT_region_begin(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_region_begin(NFieldObjectOperator, bpy.types.Operator):
     """Start a region edit: later edits change only these faces (default: the selected faces)"""
 
     bl_idname = "nfield.region_begin"
@@ -264,7 +191,7 @@ def parse_index_list(text: str) -> list[int] | None:
     return out
 
 
-class NFIELD_OT_region_commit(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_region_commit(NFieldObjectOperator, bpy.types.Operator):
     """Keep the region's field as a layer and return to global editing"""
 
     bl_idname = "nfield.region_commit"
@@ -274,7 +201,7 @@ class NFIELD_OT_region_commit(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, lambda obj: f"nfield: committed {api.commit_region(obj).name}")
 
 
-class NFIELD_OT_region_cancel(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_region_cancel(NFieldObjectOperator, bpy.types.Operator):
     """Discard the region edit (back to the field before it began)"""
 
     bl_idname = "nfield.region_cancel"
@@ -284,7 +211,7 @@ class NFIELD_OT_region_cancel(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, api.cancel_region)
 
 
-class NFIELD_OT_layer_release(_NFieldObjectOperator, bpy.types.Operator):
+class NFIELD_OT_layer_release(NFieldObjectOperator, bpy.types.Operator):
     """Release a committed layer: its faces follow the global solve again"""
 
     bl_idname = "nfield.layer_release"
@@ -301,123 +228,6 @@ class NFIELD_OT_layer_release(_NFieldObjectOperator, bpy.types.Operator):
         return self.run(context, fn, solve_after=True)
 
 
-#: State of the last background precompute (read by scripts and tests; the UI shows progress in the
-#: status bar): state is "idle", "running", "cancelled", "failed" or "finished".
-#: ui_updates counts the progress updates the UI made while the worker ran (the UI stayed responsive).
-precompute_status: dict = {"state": "idle", "object": "", "k": 0, "fraction": 0.0, "message": "", "ui_updates": 0}
-
-
-class NFIELD_OT_precompute_spectral(_NFieldObjectOperator, bpy.types.Operator):
-    """Compute the spectral basis (k lowest eigenfields) in the background; Esc cancels"""
-
-    bl_idname = "nfield.precompute_spectral"
-    bl_label = "Precompute Spectral Basis"
-    bl_options = {"REGISTER"}  # the basis lives in memory; the mode switch is a setting
-
-    k: IntProperty(name="Eigenfields", default=0, min=0, description="0: the object's Eigenfields setting")
-
-    _thread = None
-    _timer = None
-
-    def execute(self, context):
-        # scripts / background mode: blocking
-        return self.run(context, lambda obj: f"nfield: spectral basis ready "
-                        f"({api.precompute_spectral(obj, self.k or None).num_faces} faces)")
-
-    def invoke(self, context, event):
-        obj = context.active_object
-        if self.report_native_error():
-            return {"CANCELLED"}
-        self._previous = (obj.nfield.solver_mode, obj.nfield.spectral_k)
-        try:
-            api.configure(obj, mode="spectral", k=self.k or None)
-            arrays, _ = api.sync(obj)
-            self._entry = session_cache.get_entry(obj, arrays)
-            self._recipe = session_cache.session_recipe(obj, self._entry)
-        except ValueError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self._obj_name = obj.name
-        self._arrays = arrays
-        self._fraction = 0.0
-        self._cancel = False
-        self._outcome = None
-        precompute_status.update(state="running", object=obj.name, k=int(obj.nfield.spectral_k), fraction=0.0,
-                                 message="", ui_updates=0)
-        self._thread = threading.Thread(target=self._work, daemon=True)
-        self._thread.start()
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def _progress(self, fraction):
-        self._fraction = float(fraction)
-        precompute_status["fraction"] = self._fraction
-        return not self._cancel
-
-    def _work(self):
-        try:
-            self._outcome = ("ok",) + session_cache.build_session(self._recipe, self._progress)
-        except BaseException as exc:  # noqa: BLE001 - reported in the main thread
-            self._outcome = ("error", exc)
-
-    def modal(self, context, event):
-        wm = context.window_manager
-        if event.type == "ESC":
-            self._cancel = True
-        if event.type != "TIMER":
-            if not self._thread.is_alive():
-                return self._finish(context)
-            # other events go on to Blender: the viewport stays usable during the computation
-            return {"RUNNING_MODAL"} if event.type == "ESC" else {"PASS_THROUGH"}
-        wm.progress_update(int(100 * self._fraction))
-        if self._thread.is_alive():
-            precompute_status["ui_updates"] += 1
-        if context.workspace is not None:
-            state = "cancelling" if self._cancel else f"{100 * self._fraction:.0f}%"
-            context.workspace.status_text_set(f"nfield: computing spectral basis ({state}), Esc to cancel")
-        if self._thread.is_alive():
-            return {"RUNNING_MODAL"}
-        return self._finish(context)
-
-    def _finish(self, context):
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        outcome = self._outcome or ("error", RuntimeError("worker ended without a result"))
-        obj = bpy.data.objects.get(self._obj_name)
-        if self._cancel or outcome[0] == "error":
-            if obj is not None:
-                api.configure(obj, mode=self._previous[0], k=self._previous[1])
-            if self._cancel:
-                precompute_status.update(state="cancelled", message="cancelled")
-                self.report({"WARNING"}, "nfield: spectral basis computation cancelled")
-            else:
-                precompute_status.update(state="failed", message=str(outcome[1]))
-                self.report({"ERROR"}, f"nfield: spectral basis failed: {outcome[1]}")
-            return {"CANCELLED"}
-        if obj is None:
-            precompute_status.update(state="failed", message="the object was deleted")
-            return {"CANCELLED"}
-        _, session, result = outcome
-        session_cache.install_session(obj, self._entry, self._recipe, session)
-        api._store_result(obj, self._entry, result)
-        if obj.nfield.write_attributes:
-            from . import attributes
-
-            attributes.write(obj, self._arrays, result, obj.nfield.n)
-        info = session.basis_info
-        message = (f"nfield: spectral basis ready ({info.k} eigenfields, {info.source}, "
-                   f"{info.seconds:.1f} s, {info.memory_bytes / 2**20:.0f} MB)")
-        precompute_status.update(state="finished", fraction=1.0, message=message)
-        self.report({"INFO"}, message)
-        return {"FINISHED"}
-
-
 classes = (
     NFIELD_OT_solve,
     NFIELD_OT_write_attributes,
@@ -430,7 +240,6 @@ classes = (
     NFIELD_OT_region_commit,
     NFIELD_OT_region_cancel,
     NFIELD_OT_layer_release,
-    NFIELD_OT_precompute_spectral,
 )
 
 register, unregister = bpy.utils.register_classes_factory(classes)

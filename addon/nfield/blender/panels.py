@@ -174,7 +174,6 @@ class NFIELD_PT_display(_NFieldPanel, bpy.types.Panel):
         sub.prop(st, "glyph_scale")
         col.prop(st, "show_constraints")
         col.prop(st, "show_singularities")
-        col.prop(st, "show_streamlines")
 
 
 class NFIELD_PT_output(_NFieldPanel, bpy.types.Panel):

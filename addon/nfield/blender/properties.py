@@ -1,7 +1,7 @@
 """nfield's Blender data: per-object settings and the user's design, stored in the .blend.
 
 Everything lives on the **object** (``obj.nfield``, a :class:`NFieldSettings`), not on the mesh datablock:
-settings are per object (as the issue asks), and two objects sharing one mesh can carry different designs.
+settings are per object, and two objects sharing one mesh can carry different designs.
 All vectors are in **object space** (the base mesh, before modifiers), so a design follows the object's
 transform. Face indices are polygon indices of ``obj.data.polygons``; vertex indices are ``obj.data.vertices``.
 
@@ -16,7 +16,9 @@ The user's design is stored as CollectionProperty items so that it survives save
 The computed field itself is not stored here (it is rebuilt on demand from the design by
 ``nfield.blender.session_cache``, and written to mesh attributes by ``nfield.blender.attributes``).
 
-Names in this module are a stable interface (the overlay and the interactive tools read them).
+Names in this module are a stable interface (the overlay and the interactive tools read them). The enum items
+and numeric limits come from ``choices``; the field settings' update callback is ``handlers.on_setting_changed``
+(a changed setting re-solves when Live Update is on). Only ``design`` writes the design collections.
 """
 from __future__ import annotations
 
@@ -33,43 +35,18 @@ from bpy.props import (
 )
 from bpy.types import PropertyGroup
 
-# ---------------------------------------------------------------------------------------------- enum items
-SYMMETRY_ITEMS = [
-    ("1", "1 (Vector)", "Vector field: one direction per face"),
-    ("2", "2 (Line)", "Line field: two opposite directions per face"),
-    ("3", "3", "3-direction field (120 degrees apart)"),
-    ("4", "4 (Cross)", "Cross field: four directions 90 degrees apart"),
-    ("6", "6", "6-direction field (60 degrees apart)"),
-]
-ENERGY_ITEMS = [
-    ("HARMONIC", "Harmonic", "Order 1 (Dirichlet) energy: smoothest, singularities attract"),
-    ("BIHARMONIC", "Biharmonic", "Order 2 energy: smooth spline-like interpolation (default)"),
-    ("TRIHARMONIC", "Triharmonic", "Order 3 energy: even smoother interpolation"),
-]
-#: energy enum -> the order m of the m-harmonic energy
-ENERGY_ORDER = {"HARMONIC": 1, "BIHARMONIC": 2, "TRIHARMONIC": 3}
-ORDER_ENERGY = {v: k for k, v in ENERGY_ORDER.items()}
-
-ALIGNMENT_ITEMS = [
-    ("NONE", "None", "No alignment term"),
-    ("CURVATURE_MAX", "Curvature Max", "Align to the principal direction of largest absolute curvature"),
-    ("CURVATURE_MIN", "Curvature Min", "Align to the principal direction of smallest absolute curvature"),
-    ("ATTRIBUTE", "Face Attribute", "Align to an existing face-domain FLOAT_VECTOR attribute"),
-]
-#: alignment enum -> nfield.core.solve's ``align`` argument
-ALIGNMENT_CORE = {"NONE": "none", "CURVATURE_MAX": "curvature-max", "CURVATURE_MIN": "curvature-min",
-                  "ATTRIBUTE": "field"}
-CORE_ALIGNMENT = {v: k for k, v in ALIGNMENT_CORE.items()}
-
-SOLVER_MODE_ITEMS = [
-    ("EXACT", "Exact", "Exact sparse solve (live editing re-uses one factorization)"),
-    ("SPECTRAL", "Spectral", "Solve in the span of the k lowest eigenfields (needs a precomputed basis)"),
-]
-CONSTRAINT_KIND_ITEMS = [
-    ("DIRECTION", "Direction", "Hard direction constraint: one of the n directions points along it"),
-    ("VECTOR", "Vector", "Hard n-vector constraint: direction and magnitude"),
-]
-
+from . import handlers
+from .choices import (
+    ALIGNMENT_CORE,
+    ALIGNMENT_ITEMS,
+    CONSTRAINT_KIND_ITEMS,
+    ENERGY_ITEMS,
+    ENERGY_ORDER,
+    MAX_STRENGTH,
+    MIN_STRENGTH,
+    SOLVER_MODE_ITEMS,
+    SYMMETRY_ITEMS,
+)
 
 # ---------------------------------------------------------------------------------------------- items
 class NFieldConstraint(PropertyGroup):
@@ -120,11 +97,7 @@ class NFieldLayer(PropertyGroup):
 
 
 # ---------------------------------------------------------------------------------------------- settings
-def _update_setting(self, context):
-    """Settings changed: the cached session reconfigures lazily (see session_cache); live update re-solves."""
-    from . import session_cache
-
-    session_cache.on_settings_changed(self.id_data, context)
+_update_setting = handlers.on_setting_changed
 
 
 def _update_display(self, context):
@@ -148,7 +121,8 @@ class NFieldSettings(PropertyGroup):
         name="Alignment Attribute", default="",
         description="Face-domain FLOAT_VECTOR attribute to align to (Alignment = Face Attribute)",
         update=_update_setting)
-    strength: FloatProperty(name="Strength", default=1.0, min=1e-4, max=1e6, soft_max=100.0,
+    strength: FloatProperty(name="Strength", default=1.0, min=MIN_STRENGTH, max=MAX_STRENGTH, soft_min=1e-4,
+                            soft_max=100.0,
                             description="Alignment strength (weight of the alignment term; used when Alignment is not None)", update=_update_setting)
     solver_mode: EnumProperty(name="Solver", items=SOLVER_MODE_ITEMS, default="EXACT", update=_update_setting)
     spectral_k: IntProperty(name="Eigenfields", default=500, min=2, soft_max=2000,
@@ -164,6 +138,8 @@ class NFieldSettings(PropertyGroup):
     glyph_scale: FloatProperty(name="Glyph Scale", default=1.0, min=0.05, soft_max=4.0, update=_update_display)
     show_constraints: BoolProperty(name="Show Constraints", default=True, update=_update_display)
     show_singularities: BoolProperty(name="Show Singularities", default=True, update=_update_display)
+    # kept so that files which set it still load unchanged; the overlay draws no streamlines and the panel
+    # does not show it (hatching strokes are built as curves instead: nfield.hatching)
     show_streamlines: BoolProperty(name="Show Streamlines", default=False, update=_update_display)
 
     # --- output attributes

@@ -1,6 +1,8 @@
 """Add-on wide runtime state (not saved): set by register(), read by the panels."""
 from __future__ import annotations
 
+from ..core import native
+
 #: the loader's message when the compiled module nfield._native cannot be imported, else ""
 native_problem: str = ""
 
@@ -8,8 +10,6 @@ native_problem: str = ""
 def native_error() -> str | None:
     """The loader's message if the compiled module cannot be imported now, else None."""
     try:
-        from ..core import native
-
         native()
     except ImportError as exc:
         return str(exc)

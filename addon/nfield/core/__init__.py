@@ -6,6 +6,11 @@
     result.directions      # (F, 3) first unit direction per face
 
 The compiled module ``nfield._native`` is imported on first use (see :func:`native`).
+
+Parameter rules every front end shares (the command line and the Blender layer import them from here):
+``MIN_STRENGTH`` / ``MAX_STRENGTH`` (admissible alignment strengths), ``TANGENT_TOLERANCE`` (a direction whose
+tangent part is shorter than this fraction of its length counts as normal to the face) and
+``INDEX_TOLERANCE`` (how far index x n may be from an integer).
 """
 from ._loader import NativeModuleError, native
 from .constraints import (
@@ -18,7 +23,18 @@ from .constraints import (
 from .mesh import SUPPORTED_EXTENSIONS, Mesh
 from .session import DesignSession, Layer
 from .spectral import DEFAULT_K, BasisInfo, default_cache_dir, load_or_compute_basis, low_pass
-from .solve import ALIGN_CHOICES, WEIGHT_CHOICES, FieldResult, eigenvalues, smoothest_field, solve
+from .solve import (
+    ALIGN_CHOICES,
+    INDEX_TOLERANCE,
+    MAX_STRENGTH,
+    MIN_STRENGTH,
+    TANGENT_TOLERANCE,
+    WEIGHT_CHOICES,
+    FieldResult,
+    eigenvalues,
+    smoothest_field,
+    solve,
+)
 from .streamlines import Strokes, trace_streamlines
 from .remesh import QuadMesh, field_directions, field_singularities, quad_mesh_stats, quad_remesh, write_polygon_obj
 
@@ -50,6 +66,10 @@ __all__ = [
     "smoothest_field",
     "ALIGN_CHOICES",
     "WEIGHT_CHOICES",
+    "MIN_STRENGTH",
+    "MAX_STRENGTH",
+    "TANGENT_TOLERANCE",
+    "INDEX_TOLERANCE",
     "native",
     "NativeModuleError",
     "Strokes",

@@ -8,8 +8,8 @@ warm between edits:
   constraint (the drag in the UI) then costs no sparse solve (only the small Schur system, eqs. 13-14);
   a constraint on a new face costs one complex back-substitution (both real columns at once); removing a
   constraint costs nothing. A solve that brings many new faces at once (more than four: a loaded design)
-  solves directly (one forward substitution per face and two solves) and the next solve without new faces
-  computes their columns in one block. Changing n, order, alignment or strength refactors (lazily, on the
+  solves directly (a forward substitution along each face's elimination-tree path, then one solve) and the
+  next solve without new faces computes their columns in one block. Changing n, order, alignment or strength refactors (lazily, on the
   next solve). An n-vector spline without alignment (lambda = 0, the paper's eq. 8 exactly) substitutes the
   vector constraints present when it factors ("anchors": what keeps V positive definite on flat and
   developable meshes); removing one of them refactors, adding others does not.
@@ -113,6 +113,19 @@ class Layer:
     token: int = field(default_factory=_token, compare=False)
 
 
+@dataclass
+class _Region:
+    """A region edit in progress: its faces and triangles, and what cancel_region puts back."""
+
+    faces: np.ndarray          # input faces of the region (sorted, unique)
+    triangles: np.ndarray      # their triangles
+    saved: tuple               # (direction, vector, singularity constraints) before begin_region
+    dirty: bool                # the session's dirty flag before begin_region
+    field_before: Any          # the FieldResult before begin_region
+    frozen_values: np.ndarray  # raw solution per triangle: the values of everything outside the region
+    token: int = field(default_factory=_token)
+
+
 class DesignSession(SessionGuides, SessionLive):
     """One mesh, its settings and its constraints, with a warm solver. See the module docstring; guide
     authoring (features, curves, comb, weights, cuts, symmetry) is in session_guides.py."""
@@ -132,7 +145,7 @@ class DesignSession(SessionGuides, SessionLive):
         self._vecs: dict[int, np.ndarray] = {}
         self._sings: dict[int, float] = {}
         self._layers: list[Layer] = []
-        self._region: dict[str, Any] | None = None
+        self._region: _Region | None = None
         self._ops = None
         self._ops_key = None
         self._ops_token = 0
@@ -331,21 +344,21 @@ class DesignSession(SessionGuides, SessionLive):
         if self.field is None:
             self.solve()
         tris = np.flatnonzero(np.isin(self.mesh.triangle_face, faces))
-        self._region = {"faces": faces, "triangles": tris, "token": _token(),
-                        "saved": (copy.deepcopy(self._dirs), copy.deepcopy(self._vecs), dict(self._sings)),
-                        "dirty": self._dirty,
-                        "field": self.field, "frozen_values": np.asarray(self.field.raw_solution).copy()}
+        self._region = _Region(faces=faces, triangles=tris,
+                               saved=(copy.deepcopy(self._dirs), copy.deepcopy(self._vecs), dict(self._sings)),
+                               dirty=self._dirty, field_before=self.field,
+                               frozen_values=np.asarray(self.field.raw_solution).copy())
 
     def commit_region(self) -> Layer:
         """End the region edit; its field becomes a layer held fixed by later global solves."""
         if self._region is None:
             raise ValueError("no region edit in progress")
-        if self.field is None or self.field is self._region["field"] or self._dirty:
+        if self.field is None or self.field is self._region.field_before or self._dirty:
             self.solve()
-        tris = self._region["triangles"]
+        tris = self._region.triangles
         active = np.asarray(self.mesh.native.face_active, dtype=bool)
         tris = tris[active[tris]]
-        layer = Layer(faces=self._region["faces"], triangles=tris,
+        layer = Layer(faces=self._region.faces, triangles=tris,
                       values=np.asarray(self.field.raw_solution)[tris].copy())
         self._layers.append(layer)
         self._region = None
@@ -355,9 +368,9 @@ class DesignSession(SessionGuides, SessionLive):
         """End the region edit and restore the constraints and field from before begin_region."""
         if self._region is None:
             raise ValueError("no region edit in progress")
-        self._dirs, self._vecs, self._sings = self._region["saved"]
-        self.field = self._region["field"]
-        self._dirty = self._region["dirty"]
+        self._dirs, self._vecs, self._sings = self._region.saved
+        self.field = self._region.field_before
+        self._dirty = self._region.dirty
         self._region = None
 
     @property
@@ -599,11 +612,11 @@ class DesignSession(SessionGuides, SessionLive):
     # ------------------------------------------------------------------ internals
     def _check_face_constraint(self, c, attr: str, label: str) -> None:
         _face_vectors(self.mesh, [c], attr, label)  # range, excluded, zero, normal-parallel
-        if self._region is not None and c.face not in set(self._region["faces"].tolist()):
+        if self._region is not None and c.face not in set(self._region.faces.tolist()):
             raise ValueError(f"face {c.face} is outside the region being edited")
 
     def _ring_in_region(self, v: int) -> bool:
-        region = set(self._region["triangles"].tolist())
+        region = set(self._region.triangles.tolist())
         return all(t in region for t in self._solve_native_mesh().vertex_ring_faces(v))
 
     def _face_frozen(self, face: int, frozen_set: set) -> bool:
@@ -625,9 +638,9 @@ class DesignSession(SessionGuides, SessionLive):
         if self._region is not None:
             active = np.asarray(self.mesh.native.face_active, dtype=bool)
             free = np.zeros(self.mesh.num_triangles, dtype=bool)
-            free[self._region["triangles"]] = True
+            free[self._region.triangles] = True
             tris = np.flatnonzero(active & ~free)
-            return tris, self._region["frozen_values"][tris], ("region", self._region["token"])
+            return tris, self._region.frozen_values[tris], ("region", self._region.token)
         if not self._layers:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.complex128), ()
         tris = np.concatenate([layer.triangles for layer in self._layers])

@@ -46,7 +46,9 @@ class FieldOperators {
   /// r_e = exp(i n (a1 - a0)) for dual edge e (face0 -> face1); computed once per operators.
   Complex transport(int e) const { return transport_[e]; }
   /// Transport from face a to an adjacent face b across dual edge e (r_e or conj(r_e)).
-  Complex transport(int e, int from_face) const;
+  Complex transport(int e, int from_face) const {
+    return mesh_->dual_edges()[e].face0 == from_face ? transport_[e] : std::conj(transport_[e]);
+  }
   double edge_weight(int e) const { return edge_weight_[e]; }
 
   /// Diagonal of M (face areas of active faces, length^2), indexed by unknown.

@@ -6,7 +6,7 @@
 // an exact multiple of 1/n. On a closed orientable mesh the indices of a field without zeros sum to chi.
 //
 // Singularity constraint for index N/n (the paper's eq. 10 ignores the holonomy; see
-// shared/notes/conventions.md): impose on k-1 consecutive steps z_{j+1} = r_j exp(i delta) z_j with
+// docs/math.md, section 8): impose on k-1 consecutive steps z_{j+1} = r_j exp(i delta) z_j with
 // delta = (2 pi N - n K_v) / k. The closing step then holds by itself and the index is exactly N/n.
 // It needs |delta| < pi, i.e. |N/n - K_v/(2 pi)| < k/(2n) (roughly the paper's |index| < k/(2n)).
 #pragma once

@@ -19,7 +19,8 @@ struct Eigenpairs {
 };
 
 /// The k smallest eigenpairs of S z = lambda M z restricted to `unknowns` (all if empty).
-/// Small problems use a dense solver, large ones Spectra's shift-invert Lanczos on the realified problem.
+/// Small problems (at most kDenseEigenLimit unknowns, or k too close to N for Lanczos) use the dense path
+/// of dense_eigen.hpp, large ones Spectra's shift-invert Lanczos on the realified problem.
 /// Throws ParameterError if k < 1 or k > number of unknowns, SolverError if the solver fails.
 Eigenpairs lowest_eigenpairs(const FieldOperators& ops, int k, const ProgressCallback& progress = {});
 

@@ -118,9 +118,9 @@ class ExactSolver : public ConstraintEditor {
  public:
   /// New columns computed at once by a live solver; more new faces make a direct solve (see above).
   static constexpr size_t kEagerColumns = 4;
-  /// condition_estimate() above which new columns are refined (hermitian_factor.hpp): there kappa > ~1e7 and
-  /// unrefined columns would be off by more than ~1e-9.
-  static constexpr double kRefineColumnsCondition = 1e5;
+  /// condition_estimate() above which new columns are refined (hermitian_factor.hpp): unrefined columns would be
+  /// off by more than ~1e-9. Lower thresholds cost too much: a long double residual per column and step.
+  static constexpr double kRefineColumnsCondition = 1e6;
 
   /// `alignment` per face (size num_faces) or empty for none. Factors V (the expensive step).
   /// `lambda_override` (if finite) replaces the strength mapping (expert use, tests); it must keep V
@@ -208,7 +208,7 @@ class ExactSolver : public ConstraintEditor {
   Response schur_solve(const std::vector<ConstraintRow>& rows, const Response& y, Eigen::MatrixXd& K) const;
   /// The field of unit loads sum_f a_f R_f (one solve in a direct solve, the columns otherwise).
   ComplexVector response_to(const std::unordered_map<int, Complex>& loads) const;
-  /// Iterative refinement of the constraint system: while a row is violated by more than 1e-13 of its terms,
+  /// Iterative refinement of the constraint system: while a row is violated by more than 1e-10 of its terms,
   /// K dgamma = D w - h and w -= V^-1 D^T dgamma (at most three steps). Needed where V is ill-conditioned: K
   /// and y at the constrained faces come from unrefined substitutions (~sqrt(kappa) eps), the field from
   /// refined solves.
@@ -216,6 +216,10 @@ class ExactSolver : public ConstraintEditor {
   /// Rows with their terms on fixed faces moved to the right-hand side; ConstraintError for a row without
   /// unknowns that does not hold.
   std::vector<ConstraintRow> free_rows(const std::vector<ConstraintRow>& rows) const;
+  /// ConstraintError when the rows force every constrained face to vanish although the data reaches them
+  /// (|w_f| <= 1e-9 |y_f| on all of them: e.g. two direction constraints on a singularity's ring that the
+  /// ring's rotation cannot both meet): no face can then point along +d.
+  void check_constrained_faces_carry_data(const Response& y, const Response& w) const;
   /// ConstraintError naming the singularities (and constrained faces on their rings) whose ring rows the
   /// solution violates: contradictory constraints the rank test missed (see the .cpp).
   void check_rows_hold(const ComplexVector& field) const;  ///< field per face, before snapping

@@ -1,0 +1,188 @@
+"""What the viewport tools share: picking on the mesh under the mouse, the header/status text, the solver
+session a modal tool edits live, and the mixin of the two modal tools.
+
+Geometry: the mouse ray is taken to **object space** with the inverse of ``matrix_world`` (points with the
+full affine inverse, the direction with its linear part) and cast against a BVH of the *base* mesh
+(``mesh_read.bvh``, rebuilt when the mesh signature changes), so face indices are polygon indices of
+``obj.data`` and rotation / non-uniform scale are handled exactly: an affine map keeps lines and planes, so
+intersecting the transformed ray with the face's plane in object space gives the same surface point as in
+world space. Directions are in object space, projected onto the face's tangent plane: the frame the solver
+and the stored design use.
+"""
+from __future__ import annotations
+
+from bpy_extras import view3d_utils
+from mathutils import Vector
+
+from . import api, design, jobs, mesh_read
+from .operator_base import failure_message
+
+#: a click within this many pixels of a constraint's centroid / a pinned singularity picks it
+PICK_PIXELS = 24
+#: minimum drag (pixels) before the direction follows the mouse
+DRAG_PIXELS = 4
+
+#: the last press handled by the constraint/singularity tools (region pixel, object, face/vertex): for
+#: scripted checks and bug reports
+last_press: dict = {}
+
+
+def poll_object(context) -> bool:
+    """An active mesh object with faces, in object mode."""
+    obj = context.active_object
+    return (obj is not None and obj.type == "MESH" and obj.mode == "OBJECT" and hasattr(obj, "nfield")
+            and len(obj.data.polygons) > 0)
+
+
+# ------------------------------------------------------------------------------------------ picking
+def mouse_ray_object(context, obj, mouse):
+    """(origin, direction) of the mouse ray in object space."""
+    region, rv3d = context.region, context.region_data
+    o = view3d_utils.region_2d_to_origin_3d(region, rv3d, mouse)
+    d = view3d_utils.region_2d_to_vector_3d(region, rv3d, mouse)
+    inv = obj.matrix_world.inverted_safe()
+    return inv @ o, (inv.to_3x3() @ d)
+
+
+def ray_cast(context, obj, mouse, arrays: mesh_read.MeshArrays):
+    """(location, normal, polygon index) in object space of the first hit of the mouse ray, or None.
+    `arrays`: the object's mesh_read.mesh_arrays (read once per event)."""
+    o, d = mouse_ray_object(context, obj, mouse)
+    if d.length == 0:
+        return None
+    tree, triangle_polygon = mesh_read.bvh(obj, arrays)
+    loc, nrm, tri, _ = tree.ray_cast(o, d.normalized())
+    if loc is None:
+        return None
+    return loc, nrm, int(triangle_polygon[tri])
+
+
+def ray_plane(context, obj, mouse, point, normal):
+    """Intersection (object space) of the mouse ray with the plane (point, normal), or None if grazing."""
+    o, d = mouse_ray_object(context, obj, mouse)
+    denom = d.dot(normal)
+    if abs(denom) < 1e-9 * d.length * normal.length:
+        return None
+    t = (point - o).dot(normal) / denom
+    return o + d * t
+
+
+def _to_region(context, obj, p_obj):
+    return view3d_utils.location_3d_to_region_2d(context.region, context.region_data, obj.matrix_world @ p_obj)
+
+
+def nearest_on_screen(context, obj, points_obj, mouse, limit):
+    """Index of the point (object space) nearest to `mouse` on screen within `limit` pixels, or None."""
+    best, best_d = None, limit
+    m = Vector(mouse)
+    for i, p in enumerate(points_obj):
+        q = _to_region(context, obj, Vector(tuple(p)))
+        if q is None:
+            continue
+        dist = (q - m).length
+        if dist <= best_d:
+            best, best_d = i, dist
+    return best
+
+
+def constraint_under_cursor(context, obj, mouse, hit, arrays: mesh_read.MeshArrays):
+    """Face of the constraint the user points at: the constrained face under the cursor (`hit`, from
+    ray_cast), else the arrow nearest on screen (its face may be small or hidden behind the arrow); or None."""
+    if hit is not None and design.constraint_item(obj, hit[2]) is not None:
+        return hit[2]
+    items = [c for c in obj.nfield.constraints if not c.stale and c.face < arrays.num_polygons]
+    i = nearest_on_screen(context, obj, [arrays.polygon_centers[c.face] for c in items], mouse, PICK_PIXELS)
+    return None if i is None else items[i].face
+
+
+def pinned_singularity_under_cursor(context, obj, mouse, arrays: mesh_read.MeshArrays):
+    """Vertex of the pinned singularity nearest on screen to `mouse`, or None."""
+    pinned = [s for s in obj.nfield.singularities if not s.stale and s.vertex < arrays.vertices.shape[0]]
+    i = nearest_on_screen(context, obj, [arrays.vertices[s.vertex] for s in pinned], mouse, PICK_PIXELS)
+    return None if i is None else pinned[i].vertex
+
+
+# ------------------------------------------------------------------------------------------ status text
+def set_status(context, text):
+    """Show `text` in the 3D view's header and the status bar (None: back to Blender's default)."""
+    if context.area is not None:
+        context.area.header_text_set(text)
+    ws = getattr(context, "workspace", None)
+    if ws is not None:
+        ws.status_text_set(text)
+
+
+def clear_status(context):
+    set_status(context, None)  # None restores Blender's own header / status bar
+
+
+# ------------------------------------------------------------------------------------------ the session
+def open_tool_session(obj):
+    """(session cache entry, DesignSession) of `obj` with a solved field, for live edits. ValueError (with
+    what to do) when the session cannot be edited live right now: a worker owns it, its spectral basis is
+    not computed (that would freeze the viewport for minutes), or in a window it must factor first (that
+    starts in the background; drag again when it is done)."""
+    if jobs.busy(obj):
+        raise ValueError(f"'{obj.name}' is being solved in the background: wait for it or press Esc")
+    _, entry, session = api.open_session(obj)
+    if obj.nfield.solver_mode == "SPECTRAL" and not session.basis_available():
+        raise ValueError(f"the spectral basis ({obj.nfield.spectral_k} eigenfields) is not computed yet: "
+                         f"press Precompute in the nfield panel, or switch the solver to Exact")
+    if jobs.interactive() and session.pending_work() == "factorization":
+        jobs.start_later(obj.name)
+        raise ValueError("preparing the solver in the background (Esc cancels): drag again when it is done")
+    if session.field is None:
+        api.store_result(obj, entry, session.solve())
+    return entry, session
+
+
+def remove_design_item(op, context, remove, key, done_message):
+    """`remove(obj, key)` (an api removal), then re-solve (Live Update) or just redraw the overlay; reports
+    like the other tool operators. A failed re-solve keeps the removed item."""
+    obj = context.active_object
+    saved = None
+    try:
+        api.sync(obj)
+        saved = api.snapshot(obj)
+        remove(obj, key)
+        if obj.nfield.live_update:
+            api.solve(obj)
+        else:
+            api.notify_overlay(obj)
+    except (ValueError, RuntimeError, MemoryError) as exc:
+        if saved is not None:
+            api.restore(obj, saved)
+        op.report({"ERROR"}, failure_message(exc))
+        return {"CANCELLED"}
+    op.report({"INFO"}, done_message)
+    return {"FINISHED"}
+
+
+class ModalViewportTool:
+    """Mixin of the two modal tools: poll for a 3D view with a mesh in object mode; the solver session."""
+
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return poll_object(context) and context.area is not None and context.area.type == "VIEW_3D"
+
+    def _open_session(self, obj) -> bool:
+        """self._entry, self._session with a solved field; False (reported) if the design cannot be solved."""
+        try:
+            self._entry, self._session = open_tool_session(obj)
+        except (ValueError, RuntimeError, MemoryError) as exc:
+            self.report({"ERROR"}, failure_message(exc))
+            return False
+        return True
+
+    def _store(self, obj, result) -> None:
+        """A live solve of the tool's session produced `result`: record it (panel, overlay)."""
+        api.store_result(obj, self._entry, result)
+
+    def _write_attributes(self, obj):
+        if obj.nfield.write_attributes and self._entry.result is not None:
+            try:
+                api.write_attributes(obj, self._entry.result)
+            except ValueError as exc:
+                self.report({"WARNING"}, str(exc))

@@ -1,0 +1,126 @@
+"""What every headless Blender test file shares: a fresh user profile, PyPI ``bpy``, the add-on installed from
+the packaged zip (fixtures ``nf`` and ``scene``) and small helpers.
+
+The add-on is installed from the packaged zip (``build_addon.py package``, the ``addon_zip`` fixture of
+conftest.py rebuilds it only when a source is newer) into a temporary user extensions directory and enabled
+as an extension; the tests use that installed copy (``bl_ext.user_default.nfield``), never ``addon/`` (two
+copies of the compiled module in one process would clash).
+
+bpy can only be imported once per process; tests reset the scene with ``read_factory_settings(use_empty=True)``
+(``scene`` fixture) and re-enable the add-on if the reset disabled it. Import this module from a test file
+(``from blender_support import nf, scene, ...``); it imports ``bpy``, so such files are listed in
+conftest.BLENDER_ONLY_FILES.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "tests" / "data"
+
+USER_DIR = tempfile.mkdtemp(prefix="nfield-bpy-user-")
+if "bpy" not in sys.modules:  # a fresh, empty Blender user profile for this process
+    for _k in ("SCRIPTS", "EXTENSIONS", "CONFIG", "DATAFILES"):
+        os.environ[f"BLENDER_USER_{_k}"] = os.path.join(USER_DIR, _k.lower())
+
+bpy = pytest.importorskip("bpy", reason="PyPI bpy is not installed in this Python (the headless Blender suite needs it)")
+
+
+_installed: list = []  # the installed package, once per process (every test file imports the fixture)
+
+
+@pytest.fixture(scope="session")
+def nf(addon_zip):
+    """The installed, enabled add-on package (module bl_ext.user_default.nfield)."""
+    if _installed:
+        return _installed[0]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    result = bpy.ops.extensions.package_install_files(filepath=str(addon_zip), repo="user_default",
+                                                      enable_on_install=True)
+    assert result == {"FINISHED"}
+    pkg = importlib.import_module("bl_ext.user_default.nfield")
+    importlib.import_module("bl_ext.user_default.nfield.blender")
+    importlib.import_module("bl_ext.user_default.nfield.core")
+    assert hasattr(bpy.types.Object, "nfield"), "add-on enabled but Object.nfield is not registered"
+    _installed.append(pkg)
+    return pkg
+
+
+@pytest.fixture
+def scene(nf):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if not hasattr(bpy.types.Object, "nfield"):  # factory settings may disable add-ons: enable again
+        bpy.ops.preferences.addon_enable(module="bl_ext.user_default.nfield")
+    assert hasattr(bpy.types.Object, "nfield")
+    return nf
+
+
+def blender_module(nf, name: str):
+    """A module of the installed add-on's Blender layer, e.g. blender_module(nf, "session_cache")."""
+    return importlib.import_module(f"{nf.__name__}.blender.{name}")
+
+
+def object_from_arrays(name, V, F):
+    """A mesh object from vertex and face arrays, linked and active (no validate(): dirty input stays dirty)."""
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(np.asarray(V, float).tolist(), [], np.asarray(F, int).tolist())
+    obj = bpy.data.objects.new(name, me)
+    bpy.context.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    return obj
+
+
+def import_obj(name: str):
+    bpy.ops.wm.obj_import(filepath=str(DATA / name))
+    obj = bpy.context.selected_objects[0]
+    bpy.context.view_layer.objects.active = obj
+    return obj
+
+
+def attr_array(obj, name: str, domain: str, dtype: str) -> np.ndarray:
+    me = obj.data
+    a = me.attributes.get(name)
+    assert a is not None, f"attribute {name} missing (have {list(me.attributes.keys())})"
+    assert a.domain == domain and a.data_type == dtype, (a.domain, a.data_type)
+    count = len(me.polygons) if domain == "FACE" else len(me.vertices)
+    width = 3 if dtype == "FLOAT_VECTOR" else 1
+    buf = np.empty(count * width, dtype=np.float32)
+    a.data.foreach_get("vector" if width == 3 else "value", buf)
+    return buf.reshape(count, 3) if width == 3 else buf
+
+
+def poly_normals(obj) -> np.ndarray:
+    me = obj.data
+    buf = np.empty(len(me.polygons) * 3, dtype=np.float32)
+    me.polygons.foreach_get("normal", buf)
+    return buf.reshape(-1, 3).astype(np.float64)
+
+
+def nsym_angle_error(a: np.ndarray, b: np.ndarray, normals: np.ndarray, n: int) -> np.ndarray:
+    """Per row: |angle between a and b modulo 2 pi / n| in radians (a, b tangent unit vectors)."""
+    ang = np.arctan2(np.einsum("ij,ij->i", np.cross(a, b), normals), np.einsum("ij,ij->i", a, b))
+    period = 2 * np.pi / n
+    r = np.mod(ang + period / 2, period) - period / 2
+    return np.abs(r)
+
+
+def core_reference(nf, obj, constraints=(), singularities=(), **kw):
+    """nfield.core.solve on the same input (the mesh's loop triangulation, polygons as input faces)."""
+    core = importlib.import_module(nf.__name__ + ".core")
+    arrays = blender_module(nf, "mesh_read").mesh_arrays(obj)
+    mesh = core.Mesh(arrays.vertices, arrays.triangles, face_to_polygon=arrays.triangle_polygon,
+                     num_polygons=arrays.num_polygons)
+    return core.solve(mesh, constraints=list(constraints), singularities=list(singularities), **kw)
+
+
+def interior_vertex(obj) -> int:
+    """A vertex far from everything special: the one closest to the mesh's first polygon's centre."""
+    return int(obj.data.polygons[0].vertices[0])
+
