@@ -233,6 +233,11 @@ class SessionGuides:
     def symmetry(self) -> Symmetry | None:
         return self._symmetry
 
+    @property
+    def symmetry_info(self) -> dict | None:
+        """The matching summary of the current symmetry (what set_symmetry returned), None when it is off."""
+        return None if self._mirror is None else self._symmetry_info(self._mirror, self._symmetry)
+
     def mirrored(self, constraint):
         """The mirror image of a DirectionConstraint, VectorConstraint or SingularityConstraint (the same
         index at the mirror vertex: a reflection keeps indices), or None where there is no partner."""
