@@ -359,3 +359,77 @@ def test_guides_persist_in_the_blend(scene, tmp_path):
     api.solve(bpy.data.objects["keep"], write=False)
     report = api.guide_report(bpy.data.objects["keep"])
     assert report["symmetry"]["axis"] == "z" and report["feature_edges"] > 0
+
+
+def test_curve_sources_are_read_in_the_mesh_space(scene):
+    """A Bezier curve with handles on its chord is a straight segment: every evaluated point lies on it; a
+    Curves object gives its control points per curve; both are mapped into the mesh object's space (the mesh
+    object is moved and scaled: the points follow the inverse of its transform)."""
+    nf = scene
+    reader = blender_module(nf, "guides")
+    V, F = meshgen.grid(5, 5)
+    mesh_obj = object_from_arrays("plate", V, F)
+    mesh_obj.location = (1.0, 0.0, 0.0)
+    mesh_obj.scale = (2.0, 2.0, 2.0)
+    bpy.context.view_layer.update()
+    a, b = np.array([0.2, 0.4, 0.0]), np.array([2.2, 1.4, 0.0])
+    cd = bpy.data.curves.new("bez", "CURVE")
+    cd.dimensions = "3D"
+    cd.resolution_u = 8
+    sp = cd.splines.new("BEZIER")
+    sp.bezier_points.add(1)
+    for p, xyz, h in zip(sp.bezier_points, (a, b), ((b - a) / 3, (a - b) / 3)):
+        p.co = xyz
+        p.handle_left_type = p.handle_right_type = "FREE"
+        p.handle_right, p.handle_left = xyz + h, xyz - h
+    bez = bpy.data.objects.new("bez", cd)
+    bpy.context.collection.objects.link(bez)
+    bpy.context.view_layer.update()
+    (line,) = reader.curve_polylines(bez, mesh_obj)
+    world = line * 2.0 + [1.0, 0.0, 0.0]  # back to world space
+    u = (b - a) / np.linalg.norm(b - a)
+    off = (world - a) - np.outer((world - a) @ u, u)
+    assert len(line) == 9 and np.abs(off).max() < 1e-5  # float32 coordinates
+    assert np.allclose(world[0], a, atol=1e-5) and np.allclose(world[-1], b, atol=1e-5)
+    hc = bpy.data.hair_curves.new("hair")
+    hc.add_curves([3, 1, 2])  # the single-point curve cannot guide: skipped
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [5, 5, 5], [0, 2, 0], [2, 2, 0]], dtype=float)
+    for p, xyz in zip(hc.points, pts):
+        p.position = xyz
+    hair = bpy.data.objects.new("hair", hc)
+    bpy.context.collection.objects.link(hair)
+    bpy.context.view_layer.update()
+    lines = reader.curve_polylines(hair, mesh_obj)
+    assert [len(x) for x in lines] == [3, 2]
+    assert np.allclose(lines[0] * 2.0 + [1, 0, 0], pts[:3]) and np.allclose(lines[1] * 2.0 + [1, 0, 0], pts[4:])
+
+
+def test_guide_operators(scene):
+    """The operators: add the selected curve objects as guides, remove one, mirror the design (one undo
+    step each; errors reported, not raised from Python as tracebacks)."""
+    nf = scene
+    V, F = meshgen.icosphere(3)
+    obj = object_from_arrays("ball", V, F)
+    obj.nfield.live_update = False
+    c1 = _poly_curve("c1", [(0, -1.2, 0.2), (0.0, -0.2, 1.2)])
+    c2 = _poly_curve("c2", [(-1.2, 0, 0.2), (-0.2, 0.0, 1.2)])
+    for o in (obj, c1, c2):
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.nfield.guide_curve_add() == {"FINISHED"}
+    g = obj.nfield_guides
+    assert sorted(c.curve.name for c in g.curves) == ["c1", "c2"]
+    assert bpy.ops.nfield.guide_curve_remove(index=0) == {"FINISHED"}
+    assert [c.curve.name for c in g.curves] == ["c2"]
+    with pytest.raises(RuntimeError, match="mirror symmetry is off"):
+        bpy.ops.nfield.mirror_design()
+    g.mirror_axis = "X"
+    face = int(np.argmax(V[F].mean(axis=1)[:, 0]))
+    assert bpy.ops.nfield.constraint_add(face=face, direction=(0.2, 0.3, 1.0)) == {"FINISHED"}
+    assert bpy.ops.nfield.mirror_design() == {"FINISHED"}
+    faces = sorted(c.face for c in obj.nfield.constraints)
+    cent = V[F].mean(axis=1)
+    mirror = int(np.argmin(np.linalg.norm(cent - cent[face] * [-1, 1, 1], axis=1)))  # the reflected centroid
+    assert faces == sorted([face, mirror])
+    m = obj.nfield.constraints[[c.face for c in obj.nfield.constraints].index(mirror)]
+    assert np.allclose(tuple(m.direction), (-0.2, 0.3, 1.0))  # reflected about x: the x component flips
