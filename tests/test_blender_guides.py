@@ -433,3 +433,63 @@ def test_guide_operators(scene):
     assert faces == sorted([face, mirror])
     m = obj.nfield.constraints[[c.face for c in obj.nfield.constraints].index(mirror)]
     assert np.allclose(tuple(m.direction), (-0.2, 0.3, 1.0))  # reflected about x: the x component flips
+
+
+class _Layout:
+    """Records what a panel draws and checks every property and operator it names exists (a typo would only
+    print an error in Blender's console when the panel is drawn)."""
+
+    def __init__(self, log):
+        self.log = log
+
+    def __getattr__(self, name):  # row / column / box / split ...: a nested layout
+        if name in ("row", "column", "box", "split", "grid_flow"):
+            return lambda *a, **k: _Layout(self.log)
+        raise AttributeError(name)
+
+    def prop(self, data, name, **_kw):
+        assert name in data.bl_rna.properties, f"{type(data).__name__} has no property {name!r}"
+        self.log.append(("prop", name))
+
+    def prop_search(self, data, name, search_data, search_name, **_kw):
+        assert name in data.bl_rna.properties and hasattr(search_data, search_name)
+        self.log.append(("prop_search", name))
+
+    def operator(self, idname, **_kw):
+        mod, op = idname.split(".")
+        assert hasattr(getattr(bpy.ops, mod), op) and getattr(getattr(bpy.ops, mod), op).idname(), idname
+        self.log.append(("operator", idname))
+
+    def template_list(self, list_type, _id, data, prop, active_data, active_prop, **_kw):
+        assert hasattr(bpy.types, list_type) and prop in data.bl_rna.properties
+        assert active_prop in active_data.bl_rna.properties
+        self.log.append(("list", prop))
+
+    def label(self, **_kw):
+        self.log.append(("label", _kw.get("text", "")))
+
+
+def test_guides_panel_draws_every_setting(scene):
+    nf = scene
+    panels = blender_module(nf, "guide_panels")
+    V, F = meshgen.icosphere(2)
+    obj = object_from_arrays("panel", V, F)
+    obj.nfield.live_update = False
+    c = _poly_curve("pc", [(0, -1.2, 0.2), (0.0, -0.2, 1.2)])
+    blender_module(nf, "api").add_curve_guide(obj, c)
+
+    class Ctx:
+        active_object = obj
+
+    for mode, axis, cuts in (("SOFT", "NONE", "NONE"), ("HARD", "X", "ATTRIBUTE")):
+        g = obj.nfield_guides
+        g.feature_mode, g.mirror_axis, g.cut_source = mode, axis, cuts
+        log: list = []
+        panel = type("P", (), {"layout": _Layout(log)})()
+        assert panels.NFIELD_PT_guides.poll(Ctx)
+        panels.NFIELD_PT_guides.draw(panel, Ctx)
+        names = {n for _k, n in log}
+        assert {"use_features", "feature_mode", "weight_attribute", "rotation_attribute", "curves", "mirror_axis",
+                "cut_source", "nfield.guide_curve_add"} <= names
+        assert ("feature_weight" in names) == (mode == "SOFT") and ("feature_every" in names) == (mode == "HARD")
+        assert ("nfield.mirror_design" in names) == (axis == "X") and ("cut_attribute" in names) == (cuts != "NONE")
