@@ -49,7 +49,7 @@ __all__ = [
     "remove_singularity", "clear_singularities", "solve", "field", "write_attributes", "begin_region",
     "commit_region", "cancel_region", "release_layer", "precompute_spectral", "sync", "stale_items",
     "set_feature_alignment", "set_guide_attributes", "add_curve_guide", "remove_curve_guide", "set_mirror_symmetry",
-    "set_cuts", "guide_report", "guide_summary", "mirror_design",
+    "set_cuts", "guide_report", "guide_summary", "mirror_design", "comb", "clear_comb",
 ]
 
 
@@ -608,6 +608,32 @@ def guide_report(obj) -> dict | None:
     entry = session_cache.get_entry_cached(obj)
     report = None if entry is None or entry.session is None else entry.session.guide_report
     return None if report is None else report.to_dict()
+
+
+def comb(obj, points, directions, *, radius: float = 0.03, falloff: str = "smooth", strength: float = 1.0) -> int:
+    """One comb stroke: samples (points on the surface and drag directions, object space) paint guide
+    directions within `radius` (fraction of the bounding-box diagonal) with a falloff ("smooth", "linear",
+    "constant") and a strength in (0, 1]. Strokes accumulate into the comb field, stored in the face attributes
+    guides.COMB_DIRECTION / COMB_WEIGHT (saved, undoable); the comb field guides the next solve. Returns the
+    number of faces the stroke changed."""
+    if jobs.busy(obj):
+        raise NFieldError(f"'{obj.name}' is being solved in the background: wait for it to finish or press Esc")
+    _arrays, _entry, session = open_session(obj)
+    try:
+        changed = session.comb(points, directions, radius, falloff, strength)
+    except ValueError as exc:
+        raise NFieldError(str(exc)) from None
+    guides.write_comb_field(obj, *session.comb_field)
+    session.set_comb(*guides.comb_field(obj))  # the session holds what the file holds (float32 attributes)
+    return int(len(changed))
+
+
+def clear_comb(obj) -> bool:
+    """Remove the comb field (its attributes). Returns True if there was one."""
+    check_mesh_object(obj)
+    found = guides.remove_comb_field(obj)
+    open_session(obj)
+    return found
 
 
 def guide_summary(obj) -> list[str]:

@@ -5,9 +5,10 @@ settings themselves are properties (``guide_properties``): the panel edits them 
 from __future__ import annotations
 
 import bpy
-from bpy.props import IntProperty
+from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty
 
 from . import api
+from .guide_properties import NFieldCombSample
 from .guides import CURVE_TYPES
 from .operator_base import NFieldObjectOperator
 
@@ -67,5 +68,45 @@ class NFIELD_OT_mirror_design(NFieldObjectOperator, bpy.types.Operator):
                         solve_after=True)
 
 
-classes = (NFIELD_OT_guide_curve_add, NFIELD_OT_guide_curve_remove, NFIELD_OT_mirror_design)
+class NFIELD_OT_comb_stroke(NFieldObjectOperator, bpy.types.Operator):
+    """Comb the field: paint guide directions along a stroke (samples of surface points and drag directions,
+    object space); one undo step per stroke"""
+
+    bl_idname = "nfield.comb_stroke"
+    bl_label = "Comb Stroke"
+    keeps_design_on_failure = True
+
+    samples: CollectionProperty(type=NFieldCombSample, name="Samples")
+    radius: FloatProperty(name="Radius", default=0.03, min=1e-6, max=1.0,
+                          description="Brush radius, fraction of the bounding-box diagonal")
+    falloff: EnumProperty(name="Falloff", default="smooth", items=[
+        ("smooth", "Smooth", "Smooth falloff to the brush rim"), ("linear", "Linear", "Linear falloff"),
+        ("constant", "Constant", "Full strength up to the rim")])
+    strength: FloatProperty(name="Strength", default=1.0, min=1e-6, max=1.0, subtype="FACTOR")
+
+    def execute(self, context):
+        points = [tuple(s.location) for s in self.samples]
+        dirs = [tuple(s.direction) for s in self.samples]
+
+        def fn(obj):
+            changed = api.comb(obj, points, dirs, radius=self.radius, falloff=self.falloff, strength=self.strength)
+            return f"nfield: comb stroke changed {changed} faces"
+
+        return self.run(context, fn, solve_after=True)
+
+
+class NFIELD_OT_comb_clear(NFieldObjectOperator, bpy.types.Operator):
+    """Remove the comb field (the strokes stored in the comb face attributes)"""
+
+    bl_idname = "nfield.comb_clear"
+    bl_label = "Clear Comb"
+    keeps_design_on_failure = True
+
+    def execute(self, context):
+        return self.run(context, lambda obj: None if api.clear_comb(obj) else "nfield: there was no comb field",
+                        solve_after=True)
+
+
+classes = (NFIELD_OT_guide_curve_add, NFIELD_OT_guide_curve_remove, NFIELD_OT_mirror_design, NFIELD_OT_comb_stroke,
+           NFIELD_OT_comb_clear)
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import bpy
 
 from . import api
+from .guides import COMB_WEIGHT
 
 
 class NFIELD_UL_guide_curves(bpy.types.UIList):
@@ -88,6 +89,11 @@ class NFIELD_PT_guides(bpy.types.Panel):
             col.prop(g, "mirror_tolerance")
             col.prop(g, "mirror_partial")
             col.operator("nfield.mirror_design", icon="MOD_MIRROR")
+
+        if obj.data.attributes.get(COMB_WEIGHT) is not None:
+            row = layout.row()
+            row.label(text="Comb field stored", icon="BRUSH_DATA")
+            row.operator("nfield.comb_clear", text="Clear")
 
         box = layout.box()
         box.prop(g, "cut_source")

@@ -22,6 +22,7 @@ from bpy.props import (
     CollectionProperty,
     EnumProperty,
     FloatProperty,
+    FloatVectorProperty,
     IntProperty,
     PointerProperty,
     StringProperty,
@@ -69,6 +70,14 @@ class NFieldGuideCurve(PropertyGroup):
                                          "diagonal) are ignored and reported")
     every: IntProperty(name="Every", default=1, min=1, update=_update,
                        description="Hard mode: constrain every k-th face the curve crosses")
+
+
+class NFieldCombSample(PropertyGroup):
+    """One sample of a comb stroke (operator argument of nfield.comb_stroke): a point on the surface and the
+    drag direction there (object space)."""
+
+    location: FloatVectorProperty(name="Location", size=3, subtype="XYZ")
+    direction: FloatVectorProperty(name="Direction", size=3, subtype="XYZ")
 
 
 class NFieldGuides(PropertyGroup):
@@ -127,7 +136,7 @@ class NFieldGuides(PropertyGroup):
                                   description="EDGE attribute (boolean) marking the cut edges")
 
 
-classes = (NFieldGuideCurve, NFieldGuides)
+classes = (NFieldGuideCurve, NFieldCombSample, NFieldGuides)
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
 
 

@@ -95,7 +95,7 @@ def desired_guides(obj) -> dict | None:
                           f"must be >= 0")
     rotation = guides.face_values(obj, g.rotation_attribute, "guide rotation") if g.rotation_attribute else None
     return {"features": _features(obj, g), "weight": weight, "rotation": rotation, "curves": _curves(obj, g),
-            "symmetry": _symmetry(g), "cuts": _cuts(obj, g)}
+            "symmetry": _symmetry(g), "cuts": _cuts(obj, g), "comb": guides.comb_field(obj)}
 
 
 def _same_array(a, b) -> bool:
@@ -137,6 +137,15 @@ def apply_guides(session, wanted: dict | None) -> bool:
                 changed = True
         if session.symmetry != wanted["symmetry"]:
             session.set_symmetry(wanted["symmetry"])
+            changed = True
+        comb = wanted.get("comb")
+        have_dirs, have_weights = session.comb_field
+        if comb is None:
+            if have_weights.any():
+                session.clear_comb()
+                changed = True
+        elif not (np.array_equal(have_weights, comb[1]) and np.array_equal(have_dirs, comb[0])):
+            session.set_comb(comb[0], comb[1])
             changed = True
         cuts = wanted["cuts"]
         have_cuts = session.cuts

@@ -10,7 +10,10 @@ like ``mesh_read``. Vertex pairs are mesh vertex indices; per-face arrays have o
   is set (cuts from a named attribute);
 * :func:`face_values`: a face-domain FLOAT attribute (guide weight, guide rotation in radians);
 * :func:`curve_polylines`: a curve object (Bezier / NURBS / poly curve, or a Curves object) as polylines in
-  the mesh object's space, one per spline.
+  the mesh object's space, one per spline;
+* :func:`comb_field` / :func:`write_comb_field`: the comb field stored as two face attributes
+  (``COMB_DIRECTION`` FLOAT_VECTOR, ``COMB_WEIGHT`` FLOAT in [0, 1]); the mesh data is undoable and saved,
+  so the comb strokes are too.
 """
 from __future__ import annotations
 
@@ -19,7 +22,11 @@ import numpy as np
 from .errors import NFieldError
 
 __all__ = ["MARKED_SOURCES", "marked_edges", "edge_attribute_edges", "face_values", "curve_polylines",
-           "CURVE_TYPES"]
+           "CURVE_TYPES", "COMB_DIRECTION", "COMB_WEIGHT", "comb_field", "write_comb_field", "remove_comb_field"]
+
+#: face attributes holding the comb field (unit tangent direction, object space) and its weight in [0, 1]
+COMB_DIRECTION = "nfield_comb_direction"
+COMB_WEIGHT = "nfield_comb_weight"
 
 #: what a feature / cut can be read from, in the order the panel shows them
 MARKED_SOURCES = ("SHARP", "SEAM", "FACE_SETS", "MATERIALS")
@@ -219,3 +226,52 @@ def curve_polylines(curve_obj, mesh_obj, depsgraph=None) -> list[np.ndarray]:
         h = np.c_[p, np.ones(len(p))] @ to_mesh_space.T
         out.append(np.ascontiguousarray(h[:, :3]))
     return out
+
+
+def comb_field(obj) -> tuple[np.ndarray, np.ndarray] | None:
+    """(directions (P, 3), weights (P,)) of the stored comb field, None if the mesh has none. NFieldError if
+    the attributes exist with another domain or type, or the weights leave [0, 1]."""
+    me = obj.data
+    d_attr, w_attr = me.attributes.get(COMB_DIRECTION), me.attributes.get(COMB_WEIGHT)
+    if d_attr is None and w_attr is None:
+        return None
+    if d_attr is None or w_attr is None or (d_attr.domain, d_attr.data_type) != ("FACE", "FLOAT_VECTOR") or (
+            w_attr.domain, w_attr.data_type) != ("FACE", "FLOAT"):
+        raise NFieldError(f"the comb field needs a FACE FLOAT_VECTOR attribute '{COMB_DIRECTION}' and a FACE FLOAT "
+                          f"attribute '{COMB_WEIGHT}' on mesh '{me.name}' (clear the comb to start again)")
+    n = len(me.polygons)
+    d = np.empty(n * 3, dtype=np.float32)
+    d_attr.data.foreach_get("vector", d)
+    w = np.empty(n, dtype=np.float32)
+    w_attr.data.foreach_get("value", w)
+    w = np.clip(w.astype(np.float64), 0.0, None)
+    if not np.isfinite(w).all() or (w > 1.0 + 1e-6).any():
+        raise NFieldError(f"comb weight attribute '{COMB_WEIGHT}' must hold values in [0, 1]")
+    return d.reshape(-1, 3).astype(np.float64), np.minimum(w, 1.0)
+
+
+def write_comb_field(obj, directions: np.ndarray, weights: np.ndarray) -> None:
+    """Store the comb field in the two face attributes (created when missing)."""
+    me = obj.data
+    for name, kind in ((COMB_DIRECTION, "FLOAT_VECTOR"), (COMB_WEIGHT, "FLOAT")):
+        attr = me.attributes.get(name)
+        if attr is not None and (attr.domain != "FACE" or attr.data_type != kind):
+            me.attributes.remove(attr)
+            attr = None
+        if attr is None:
+            me.attributes.new(name, kind, "FACE")
+    me.attributes[COMB_DIRECTION].data.foreach_set("vector", np.asarray(directions, np.float32).ravel())
+    me.attributes[COMB_WEIGHT].data.foreach_set("value", np.asarray(weights, np.float32).ravel())
+    me.update()
+
+
+def remove_comb_field(obj) -> bool:
+    """Remove the comb attributes; True if there were any."""
+    me = obj.data
+    found = False
+    for name in (COMB_DIRECTION, COMB_WEIGHT):
+        attr = me.attributes.get(name)
+        if attr is not None:
+            me.attributes.remove(attr)
+            found = True
+    return found
