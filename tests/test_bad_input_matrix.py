@@ -556,6 +556,7 @@ def run_cli(args):
     return proc, time.perf_counter() - t0
 
 
+@pytest.mark.slow  # one CLI process per case; the in-process test above covers the same cases quickly
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_cli(case, tmp_path):
     args, out, mesh_file = cli_args(case, tmp_path)

@@ -46,7 +46,7 @@ def _solve(positions, triangles, order, kind, constraint):
 @pytest.mark.parametrize("extent", [0.99 * MAX_EXTENT, 1.01 * MIN_EXTENT])
 @pytest.mark.parametrize("constraint", ["face", "singularity"])
 @pytest.mark.parametrize("kind", ["direction", "vector"])
-@pytest.mark.parametrize("order", [1, 2, 3, 4])
+@pytest.mark.parametrize("order", [1, 2, pytest.param(3, marks=pytest.mark.slow), pytest.param(4, marks=pytest.mark.slow)])
 def test_splines_are_finite_and_scale_covariant_at_the_extent_limits(extent, constraint, kind, order):
     """At both ends of the supported range every spline is finite and matches the unit-size solution:
     lambda ~ L^-2m and M ~ L^2, so direction splines scale like L^2m and vector splines (whose constraint

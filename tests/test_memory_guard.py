@@ -64,6 +64,7 @@ print(est, after - before)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.no_sanitizer  # ASan's allocator changes the peak RSS this compares with
 def test_basis_estimate_matches_measured_peak():
     code = PROBE.format(addon=str(ROOT / "addon"), path=str(DATA / "fandisk.obj"), k=250)

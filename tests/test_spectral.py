@@ -97,6 +97,7 @@ def check_basis(ops, basis, tol_residual, tol_ortho):
     assert np.abs(G - np.eye(basis.size)).max() < tol_ortho
 
 
+@pytest.mark.slow  # the C++ unit tests of the slicing driver cover the same gluing quickly
 def test_basis_is_an_eigenbasis_across_slices(fandisk_ops):
     """k = 60 in slices of 20 (three shifts, two of them inside the spectrum): every pair is an
     eigenpair (relative residual < 1e-6: the Lanczos tolerance 1e-10 bounds |T y - theta y| / theta for
