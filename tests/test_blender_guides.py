@@ -305,7 +305,6 @@ def test_mirror_symmetry_exact_and_refusal(scene):
 
 def test_seams_cut_the_field(scene):
     nf = scene
-    core = _core(nf)
     api = _api(nf)
     V, F = meshgen.grid(21, 21)
     obj = object_from_arrays("slit", V, F)
@@ -335,7 +334,6 @@ def test_seams_cut_the_field(scene):
     with_cut = api.solve(obj, write=False)
     assert api.guide_report(obj)["cuts"]["opened"] == len(slit)
     assert without < 15 and jump(with_cut) > 45, (without, jump(with_cut))
-    del core
 
 
 def test_guides_persist_in_the_blend(scene, tmp_path):
@@ -504,7 +502,6 @@ def test_curve_edit_is_solved_live_in_a_window(scene, monkeypatch):
     nf = scene
     api = _api(nf)
     jobs = blender_module(nf, "jobs")
-    handler = blender_module(nf, "guide_handlers")
     V, F = meshgen.grid(60, 60)  # fine enough that the changed band stays under a quarter of the faces
     obj = object_from_arrays("grid_live", V, F)
     obj.nfield.live_update = True
@@ -533,7 +530,6 @@ def test_curve_edit_is_solved_live_in_a_window(scene, monkeypatch):
     # a soft pull of weight 50 and no other alignment term: the faces on the curve take its direction (measured
     # 3e-5 degrees; 1 degree is the bound of the hard guides); the old curve, 42 degrees away, no longer pulls
     assert len(faces) >= 6 and max(dev) < 1.0, (len(faces), max(dev))
-    del handler
 
 
 def test_comb_stroke_is_stored_and_guides_the_field(scene):

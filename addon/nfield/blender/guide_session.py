@@ -12,8 +12,6 @@ changes no mesh signature, and the next solve must see it.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..core.guides import CurveGuide, FeatureGuide, Symmetry
@@ -105,9 +103,8 @@ def _same_array(a, b) -> bool:
 
 
 def _same_curve(a: CurveGuide, b: CurveGuide) -> bool:
-    return (_same_array(a.points, b.points) and (a.mode, a.every) == (b.mode, b.every)
-            and all(math.isclose(x, y, rel_tol=0, abs_tol=0) for x, y in
-                    ((a.weight, b.weight), (a.width, b.width), (a.tolerance, b.tolerance))))
+    return _same_array(a.points, b.points) and (a.mode, a.every, a.weight, a.width, a.tolerance) == (
+        b.mode, b.every, b.weight, b.width, b.tolerance)
 
 
 def apply_guides(session, wanted: dict | None) -> bool:
