@@ -12,6 +12,8 @@ Parts (each also runs alone; every mesh in its own subprocess):
                                    double; --x4-basis adds the basis of the subdivided armadillo (long: see
                                    docs/benchmarks.md)
   live      bench/live_session.py  the exact live session: re-aim, new face, remove, region edits
+  guides    bench/guides.py        live guide edits: moving a curve, a comb stroke, a weight change (live
+                                   regions), a target change, and the global refactorization they defer
   fig8      bench/fig8.py          reduced vs exact on the bunny for k = 50 ... 2000 (one basis of k = 2000,
                                    cached in bench/results/cache/), table and PNG
   remesh    bench/remesh.py        quad remeshing beside QuadriFlow (bpy) and Instant Meshes (pyinstantmeshes,
@@ -24,7 +26,7 @@ minutes on a busy one; the numbers mean little). Default: the full run, about 18
 machine at load 6-8 once the Fig. 8 basis (bunny, k = 2000) is cached, plus ~12 min the first time for that
 basis; --x4-basis adds ~15 min and needs ~9.5 GB of memory (docs/benchmarks.md).
 
-Usage: python bench/run.py [--quick] [--parts exact,oneshot,spectral,live,fig8,remesh] [--x4-basis]
+Usage: python bench/run.py [--quick] [--parts exact,oneshot,spectral,live,guides,fig8,remesh] [--x4-basis]
 """
 from __future__ import annotations
 
@@ -41,12 +43,13 @@ sys.path.insert(0, str(HERE))
 import common  # noqa: E402
 import exact_solver  # noqa: E402
 import fig8  # noqa: E402
+import guides  # noqa: E402
 import one_shot  # noqa: E402
 import remesh  # noqa: E402
 import spectral  # noqa: E402
 from paper import FIG8_THRESHOLD, TABLE1, paper_row  # noqa: E402
 
-PARTS = ("exact", "oneshot", "spectral", "live", "fig8", "remesh")
+PARTS = ("exact", "oneshot", "spectral", "live", "guides", "fig8", "remesh")
 
 
 def run_live(quick: bool) -> dict:
@@ -61,6 +64,18 @@ def run_live(quick: bool) -> dict:
           file=sys.stderr, flush=True)
     stem = "live_session_quick" if quick else "live_session"
     return json.loads((common.RESULTS / f"{stem}.json").read_text())
+
+
+def run_guides(quick: bool) -> dict:
+    args = ["--quick"] if quick else []
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(HERE / "guides.py"), *args], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(common.ROOT / "addon")})
+    if proc.returncode != 0:
+        raise RuntimeError(f"guides: failed (exit {proc.returncode})\n{proc.stderr[-4000:]}")
+    print(f"guides: done in {time.perf_counter() - t0:.0f} s (load {common.loadavg()[0]:.1f})", file=sys.stderr,
+          flush=True)
+    return json.loads((common.RESULTS / ("guides_quick.json" if quick else "guides.json")).read_text())
 
 
 def pair(a: float | None, b: float | None) -> str:
@@ -201,6 +216,11 @@ def markdown(doc: dict) -> str:
         md.append("")
     if doc.get("live"):
         md += ["## Exact live session", "", live_summary(doc["live"]), "", "Details: live_session.md.", ""]
+    if doc.get("guides"):
+        md += ["## Live guide edits (exact session)", "", guides.table(doc["guides"]["results"]), "",
+               "total = guide computation + solve (medians); live edits are solved exactly in a region around the "
+               "changed faces, the global refactorization follows when the interaction pauses (docs/guides.md). "
+               "Details: guides.md.", ""]
     if doc.get("fig8"):
         r = doc["fig8"]["result"]
         md += ["## Accuracy of the reduction (Fig. 8)", "",
@@ -253,6 +273,8 @@ def main() -> int:
                                        5 if args.quick else 30, stem="spectral_quick" if args.quick else "spectral")
     if "live" in parts:
         doc["live"] = run_live(args.quick)
+    if "guides" in parts:
+        doc["guides"] = run_guides(args.quick)
     if "fig8" in parts:
         doc["fig8"] = (fig8.run(fig8.QUICK_KS, 4, 10, fig8.QUICK_MESH, stem="fig8_quick") if args.quick
                        else fig8.run(fig8.KS, 20, 10, fig8.MESH))
@@ -261,7 +283,7 @@ def main() -> int:
         doc["remesh"] = remesh.run(meshes, 5000, False, "remesh_quick" if args.quick else "remesh")
     doc["table1"] = combined_rows(doc.get("exact"), doc.get("spectral"), doc.get("oneshot"))
     doc["targets"] = ((doc.get("spectral") or {}).get("targets", []) + (doc.get("oneshot") or {}).get("targets", [])
-                      + (doc.get("live") or {}).get("targets", []))
+                      + (doc.get("live") or {}).get("targets", []) + (doc.get("guides") or {}).get("targets", []))
     for c in doc["targets"]:  # live_session reports ms; make every target seconds
         if "median_ms" in c:
             c["value_s"], c["target_s"] = c.pop("median_ms") / 1000, c.pop("target_ms") / 1000

@@ -339,13 +339,17 @@ def test_costs_of_edits_and_refactoring():
     s.configure(strength=1.0, order=2)
     same_solver(7 + len(ring))
 
-    # settings that change V refactor (a new solver object) and give the from-scratch result
+    # settings that change V refactor (a new solver object) and give the from-scratch result; the alignment
+    # field itself is only the right-hand side (docs/guides.md): changing it keeps the factorization
     s.set_singularity(v, 0.25)
     for change in ({"strength": 3.0}, {"order": 1}, {"align": "none"}):
         before = s._solver
         s.configure(**change)
         res = s.solve(details=False)
-        assert s._solver is not before, change
+        if "align" in change:
+            assert s._solver is before and before.num_factorizations == 1, change
+        else:
+            assert s._solver is not before, change
         assert rel(res.raw_solution, scratch(s).raw_solution) <= REL_TOL, change
         check_constraints(s, res.raw_solution)
     # n: a singularity of index 1/4 is not a multiple of 1/6 -> refused, naming the vertex, settings kept

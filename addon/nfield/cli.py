@@ -81,6 +81,53 @@ def _strength(s: str) -> float:
     return v
 
 
+def _nonnegative(name: str):
+    def parse(s: str) -> float:
+        v = _convert(s, float, f"{name} must be a number >= 0")
+        if not (math.isfinite(v) and v >= 0):
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number >= 0 (got {s})")
+        return v
+    return parse
+
+
+def _finite_float(name: str):
+    def parse(s: str) -> float:
+        v = _convert(s, float, f"{name} must be a number")
+        if not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number (got {s})")
+        return v
+    return parse
+
+
+def _feature_spec(s: str) -> str:
+    for part in s.split(","):
+        name, _, arg = part.strip().partition(":")
+        if name == "boundary" and not arg:
+            continue
+        if name == "sharp":
+            if arg:
+                v = _convert(arg, float, f"sharp angle in '{part}' must be a number of degrees")
+                if not (math.isfinite(v) and 0 <= v <= 179):
+                    raise argparse.ArgumentTypeError(f"sharp angle must lie in [0, 179] degrees (got {arg})")
+            continue
+        raise argparse.ArgumentTypeError(f"unknown feature '{part}' (expected 'boundary' or 'sharp[:DEGREES]', "
+                                         f"e.g. boundary,sharp:30)")
+    return s
+
+
+def _symmetry_spec(s: str) -> tuple:
+    axis, _, tol = s.partition(":")
+    if axis not in ("x", "y", "z"):
+        raise argparse.ArgumentTypeError(f"symmetry axis must be x, y or z (got '{axis}')")
+    t = 1e-5
+    if tol:
+        t = _convert(tol, float, "symmetry tolerance must be a number")
+        if not (math.isfinite(t) and 0 <= t <= 0.1):
+            raise argparse.ArgumentTypeError(f"symmetry tolerance must lie in [0, 0.1] (fraction of the diagonal; "
+                                             f"got {tol})")
+    return axis, t
+
+
 def _out_path(s: str) -> str:
     ext = os.path.splitext(s)[1].lower()
     if ext not in OUT_EXTENSIONS:
@@ -128,6 +175,36 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--singularities", metavar="S.json", help="singularity constraints")
     s.add_argument("--out", metavar="FIELD.npy|FIELD.csv", type=_out_path, help="write the field")
     s.add_argument("--json", action="store_true", help="print a JSON summary instead of text")
+    g = s.add_argument_group("guides (docs/guides.md)")
+    g.add_argument("--align-features", metavar="SPEC", type=_feature_spec,
+                   help="follow feature edges: 'boundary', 'sharp[:DEGREES]' (default 30) or both, e.g. "
+                        "boundary,sharp:30")
+    g.add_argument("--feature-mode", choices=("soft", "hard"), default="soft",
+                   help="soft: weighted alignment near the features; hard: direction constraints on the faces "
+                        "along them (default soft)")
+    g.add_argument("--feature-weight", type=_nonnegative("feature weight"), default=1.0,
+                   help="soft mode: weight relative to the base alignment (default 1)")
+    g.add_argument("--feature-width", type=_int_at_least(1, "feature width"), default=2,
+                   help="soft mode: width in edge rings (default 2)")
+    g.add_argument("--feature-every", type=_int_at_least(1, "feature every"), default=1,
+                   help="hard mode: constrain the faces of every k-th edge along each feature (default 1)")
+    g.add_argument("--alignment-weight", metavar="W.npy|W.csv",
+                   help="per-face weight (>= 0) of the --align field, one number per input face")
+    g.add_argument("--alignment-rotation", metavar="R.npy|R.csv",
+                   help="per-face angle (radians) turning the --align field, one number per input face")
+    g.add_argument("--curves", metavar="CURVES.json",
+                   help='curve guides: [{"points": [[x, y, z], ...], "mode": "soft"|"hard", "weight": 1, '
+                        '"width": 0.02, "tolerance": 0.01, "every": 1, "name": "..."}] (lengths: fractions of '
+                        'the bounding-box diagonal)')
+    g.add_argument("--cuts", metavar="CUTS.json|CUTS.npy",
+                   help="edges where the field may jump: vertex pairs [[a, b], ...]")
+    g.add_argument("--symmetry", metavar="AXIS[:TOL]", type=_symmetry_spec,
+                   help="mirror symmetry about the plane AXIS = 0 (x, y or z), vertices matched within TOL of "
+                        "the bounding-box diagonal (default 1e-5)")
+    g.add_argument("--symmetry-offset", type=_finite_float("symmetry offset"), default=0.0,
+                   help="the mirror plane is AXIS = OFFSET (mesh units, default 0)")
+    g.add_argument("--symmetry-partial", action="store_true",
+                   help="apply the symmetry to the faces that have a mirror partner instead of refusing")
     s.set_defaults(func=cmd_solve)
 
     i = sub.add_parser("info", help="mesh report (JSON)",
@@ -245,8 +322,9 @@ def cmd_solve(args) -> int:
     dirs = load_constraints(args.constraints, kind="direction") if args.constraints else []
     vecs = load_constraints(args.vector_constraints, kind="vector") if args.vector_constraints else []
     sings = load_constraints(args.singularities, kind="singularity") if args.singularities else []
+    guides = _guide_arguments(args, mesh)
     result = solve(mesh, n=args.n, order=args.order, align=args.align, strength=args.strength,
-                   constraints=dirs, vector_constraints=vecs, singularities=sings, weights=args.weights)
+                   constraints=dirs, vector_constraints=vecs, singularities=sings, weights=args.weights, **guides)
     if args.out:
         _write_field(args.out, result.directions)
     if args.json:
@@ -265,11 +343,85 @@ def cmd_solve(args) -> int:
         lines.append(f"sign-fixed constraint faces: {len(result.sign_fixed_faces)}")
     for line in result.mesh_report.get("summary", []) or []:
         lines.append(f"mesh: {line}")
+    if result.guides is not None:
+        lines.extend(f"guides: {line}" for line in result.guides.summary())
     lines.append(f"time: {result.seconds:.3f} s")
     if args.out:
         lines.append(f"wrote {args.out}")
     print("\n".join(lines))
     return 0
+
+
+def _per_face_file(path: str, what: str, num_faces: int):
+    """One number per input face from .npy or a text file (.csv / .txt: numbers separated by commas or
+    whitespace)."""
+    import numpy as np
+
+    try:
+        arr = np.load(path) if path.lower().endswith(".npy") else np.loadtxt(path, delimiter=None if not path.lower().endswith(".csv") else ",", ndmin=1)
+    except OSError as exc:
+        raise CLIError(f"cannot read {what} file {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise CLIError(f"{what} file {path}: {_one_line(exc)}") from None
+    arr = np.asarray(arr, dtype=np.float64).ravel()
+    if arr.shape != (num_faces,):
+        raise CLIError(f"{what} file {path} has {arr.size} numbers; the mesh has {num_faces} faces (one each)")
+    return arr
+
+
+def _json_file(path: str, what: str):
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return json.load(fh)
+    except OSError as exc:
+        raise CLIError(f"cannot read {what} file {path}: {exc.strerror or exc}") from None
+    except json.JSONDecodeError as exc:
+        raise CLIError(f"{what} file {path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
+
+
+def _guide_arguments(args, mesh) -> dict:
+    """The guide keywords of nfield.core.solve from the command line (only those given)."""
+    import numpy as np
+
+    from .core.guides import CurveGuide, Symmetry, parse_features
+
+    out: dict = {}
+    if args.align_features:
+        out["features"] = parse_features(args.align_features, mode=args.feature_mode, weight=args.feature_weight,
+                                         width=args.feature_width, every=args.feature_every)
+    if args.alignment_weight:
+        out["alignment_weight"] = _per_face_file(args.alignment_weight, "alignment weight", mesh.num_faces)
+    if args.alignment_rotation:
+        out["alignment_rotation"] = _per_face_file(args.alignment_rotation, "alignment rotation", mesh.num_faces)
+    if args.cuts:
+        if args.cuts.lower().endswith(".npy"):
+            try:
+                out["cuts"] = np.load(args.cuts)
+            except (OSError, ValueError) as exc:
+                raise CLIError(f"cannot read cuts file {args.cuts}: {_one_line(exc)}") from None
+        else:
+            out["cuts"] = _json_file(args.cuts, "cuts")
+    if args.curves:
+        items = _json_file(args.curves, "curves")
+        if not isinstance(items, list):
+            raise CLIError(f"curves file {args.curves} must hold a JSON list of curves")
+        curves = {}
+        for i, item in enumerate(items):
+            if not isinstance(item, dict) or "points" not in item:
+                raise CLIError(f"curves file {args.curves}: curve {i} must be an object with \"points\"")
+            opts = {k: item[k] for k in ("mode", "weight", "width", "tolerance", "every") if k in item}
+            unknown = set(item) - set(opts) - {"points", "name"}
+            if unknown:
+                raise CLIError(f"curves file {args.curves}: curve {i} has unknown key(s) {sorted(unknown)}")
+            try:
+                curves[str(item.get("name", i))] = CurveGuide(item["points"], **opts)
+            except (TypeError, ValueError) as exc:
+                raise CLIError(f"curves file {args.curves}: curve {i}: {_one_line(exc)}") from None
+        out["curves"] = curves
+    if args.symmetry:
+        axis, tol = args.symmetry
+        out["symmetry"] = Symmetry(axis, args.symmetry_offset, tol, args.symmetry_partial)
+    return out
 
 
 def _read_field(path: str):

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "binding_support.hpp"
+#include "nfield/mirror.hpp"
 #include "nfield/reduced_solver.hpp"
 #include "nfield/spectral_basis.hpp"
 #include "nfield/spline_solver.hpp"
@@ -37,6 +38,15 @@ std::vector<std::pair<int, Complex>> frozen_faces_of(const FieldOperators& ops, 
   return frozen;
 }
 
+/// Per-face alignment weights of ExactSolver: None (empty: weight 1 everywhere) or a 1-D float array; the solver
+/// checks the length and the values (finite, >= 0).
+Eigen::VectorXd optional_weights(const py::object& weights) {
+  if (weights.is_none()) return {};
+  const DoubleArray w = weights.cast<DoubleArray>();
+  if (w.ndim() != 1) throw InputError("alignment_weight must be a 1-D array (one weight per face)");
+  return Eigen::Map<const Eigen::VectorXd>(w.data(), w.shape(0));
+}
+
 /// Face indices of the substituted vector constraints (ExactSolver anchors), validated against the mesh.
 std::vector<int> anchor_faces_of(const FieldOperators& ops, const py::object& anchor_faces) {
   std::vector<int> anchors;
@@ -64,16 +74,17 @@ void bind_solvers(py::module_& m) {
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
                        const std::string& kind, double lambda_override, const py::object& progress,
                        const py::object& frozen_faces, const py::object& frozen_values, const py::object& anchor_faces,
-                       bool cache_columns) {
+                       bool cache_columns, const py::object& alignment_weight) {
              const ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
              const PythonProgress cb = wrap_progress(progress);
              const std::vector<std::pair<int, Complex>> frozen = frozen_faces_of(*ops, frozen_faces, frozen_values);
              const std::vector<int> anchors = anchor_faces_of(*ops, anchor_faces);
+             const Eigen::VectorXd weight = optional_weights(alignment_weight);
              return run_with_progress(cb, [&] {
                return without_gil([&] {
                  return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, frozen, anchors,
-                                        cache_columns);
+                                        cache_columns, weight);
                });
              });
            }),
@@ -81,9 +92,21 @@ void bind_solvers(py::module_& m) {
            py::arg("kind") = "direction", py::arg("lambda_override") = std::numeric_limits<double>::quiet_NaN(),
            py::arg("progress") = py::none(), py::arg("frozen_faces") = py::none(),
            py::arg("frozen_values") = py::none(), py::arg("anchor_faces") = py::none(),
-           py::arg("cache_columns") = true,
-           "Factor V = E_order - lambda M over the faces that are neither frozen (they keep their values) nor anchors "
-           "(faces whose vector constraints are substituted); cache_columns=False: a one-shot solver")
+           py::arg("cache_columns") = true, py::arg("alignment_weight") = py::none(),
+           "Factor V = E_order - lambda M_W over the faces that are neither frozen (they keep their values) nor "
+           "anchors (faces whose vector constraints are substituted); W the per-face alignment weight (1 by default); "
+           "cache_columns=False: a one-shot solver")
+      .def("set_alignment", [](ExactSolver& s, const py::object& alignment) {
+        const ComplexVector a = optional_alignment(alignment);
+        without_gil([&] { s.set_alignment(a); });
+      }, py::arg("alignment"), "New guide target values (W g per face): right-hand side only, no refactorization")
+      .def("set_symmetry", [](ExactSolver& s, const py::object& mirror) {
+        std::shared_ptr<const MirrorMap> mm;
+        if (!mirror.is_none()) mm = mirror.cast<std::shared_ptr<MirrorMap>>();
+        without_gil([&] { s.set_symmetry(mm); });
+      }, py::arg("mirror"), "Solve on the mirror-symmetric fields of a MirrorMap (None: no symmetry)")
+      .def_property_readonly("symmetric", &ExactSolver::symmetric)
+      .def_property_readonly("symmetry_corrections", &ExactSolver::symmetry_corrections)
       .def("set_direction_constraint", &ExactSolver::set_direction_constraint, py::arg("face"), py::arg("d"))
       .def("set_vector_constraint", &ExactSolver::set_vector_constraint, py::arg("face"), py::arg("value"))
       .def("remove_constraint", &ExactSolver::remove_constraint, py::arg("face"))

@@ -44,6 +44,7 @@ void bind_spectral(py::module_& m);     ///< eigen, smoothest_field, SpectralBas
 void bind_solvers(py::module_& m);      ///< strength_to_lambda, ExactSolver, ReducedSolver
 void bind_streamlines(py::module_& m);  ///< trace_streamlines
 void bind_remesh(py::module_& m);       ///< quad_remesh, polygon mesh checks and quality statistics
+void bind_guides(py::module_& m);       ///< features, curve and comb guides, guide fields, mirror maps, cuts
 
 // ---- NumPy arguments (C-contiguous, converted on the way in)
 using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;

@@ -49,4 +49,5 @@ PYBIND11_MODULE(_native, m) {
   nfield::python::bind_solvers(m);
   nfield::python::bind_streamlines(m);
   nfield::python::bind_remesh(m);
+  nfield::python::bind_guides(m);  // after bind_solvers: MirrorMap is also an argument of ExactSolver.set_symmetry
 }

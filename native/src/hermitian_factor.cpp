@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <new>
 
 #include "nfield/errors.hpp"
 #include "nfield/memory_guard.hpp"
@@ -36,11 +37,15 @@ HermitianFactor::HermitianFactor(const ComplexSparse& matrix, const std::string&
   }
   cholmod_factorize(&view, factor_, &common_);
   if (common_.status < CHOLMOD_OK || factor_->minor != factor_->n || !factor_->is_super) {
-    const bool not_posdef = factor_->minor != factor_->n;
+    const int status = common_.status;
+    const bool not_posdef = status >= CHOLMOD_OK && factor_->minor != factor_->n;
     cholmod_free_factor(&factor_, &common_);
     cholmod_finish(&common_);
+    // CHOLMOD reports a failed allocation as a status, not as an exception: it is the same condition as
+    // std::bad_alloc elsewhere in the solver (MemoryError in Python, "out of memory" on the command line)
+    if (status == CHOLMOD_OUT_OF_MEMORY) throw std::bad_alloc();
     throw SolverError(not_posdef ? what + " failed: the matrix is not positive definite"
-                                 : what + " failed (CHOLMOD status " + std::to_string(common_.status) + ")");
+                                 : what + " failed (CHOLMOD status " + std::to_string(status) + ")");
   }
   // Supernodal elimination tree: the parent of a supernode owns its first row below the diagonal block.
   const int* super = static_cast<const int*>(factor_->super);

@@ -24,7 +24,7 @@ double strength_to_lambda(const FieldOperators& ops, int order, double strength)
 ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength,
                          const ComplexVector& alignment, SplineKind kind, double lambda_override,
                          const ProgressCallback& progress, const std::vector<std::pair<int, Complex>>& frozen,
-                         const std::vector<int>& anchors, bool cache_columns)
+                         const std::vector<int>& anchors, bool cache_columns, const Eigen::VectorXd& alignment_weight)
     : ConstraintEditor(std::move(ops)), order_(order), kind_(kind), cache_columns_(cache_columns), frozen_(frozen) {
   const FieldOperators& o = *ops_;
   const TriangleMesh& mesh = o.mesh();
@@ -51,6 +51,15 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
     if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
     alignment_per_face_ = alignment;
   }
+  if (alignment_weight.size() > 0) {
+    if (alignment_weight.size() != mesh.num_faces())
+      throw InputError("alignment weights must have one value per face (" + std::to_string(mesh.num_faces()) +
+                       "), got " + std::to_string(alignment_weight.size()));
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      if (!(alignment_weight[f] >= 0) || !std::isfinite(alignment_weight[f]))
+        throw InputError("alignment weight on face " + std::to_string(f) + " must be a finite number >= 0");
+    weight_per_face_ = alignment_weight;
+  }
   if (std::isfinite(lambda_override))
     lambda_ = lambda_override;
   else if (kind == SplineKind::Vector && !has_alignment)
@@ -62,13 +71,12 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
 
 void ExactSolver::factor(const ProgressCallback& progress) {
   const FieldOperators& o = *ops_;
-  const TriangleMesh& mesh = o.mesh();
   std::vector<int> fixed;
   fixed.reserve(frozen_.size() + anchors_.size());
   for (const auto& [f, z] : frozen_) fixed.push_back(f);
   fixed.insert(fixed.end(), anchors_.begin(), anchors_.end());
   if (progress && !progress(0.0)) throw Cancelled("factorization cancelled");
-  SplineSystem system = assemble_spline_system(o, order_, lambda_, fixed);
+  SplineSystem system = assemble_spline_system(o, order_, lambda_, fixed, weight_per_face_);
   const int N = system.num_unknowns();
   if (N == 0 && anchors_.empty()) throw ConstraintError("every face is frozen: nothing is left to solve for");
   std::unique_ptr<HermitianFactor> factor;
@@ -90,7 +98,14 @@ void ExactSolver::factor(const ProgressCallback& progress) {
   deferred_.clear();
   gram_index_.clear();
   smoothest_.resize(0);
+  update_alignment();
+  if (progress && !progress(1.0)) throw Cancelled("factorization cancelled");
+}
 
+void ExactSolver::update_alignment() {
+  const FieldOperators& o = *ops_;
+  const TriangleMesh& mesh = o.mesh();
+  const int N = num_unknowns();
   alignment_ = ComplexVector::Zero(N);
   if (alignment_per_face_.size() > 0)
     for (int u = 0; u < N; ++u) alignment_[u] = alignment_per_face_[system_.face_of_unknown[u]];
@@ -117,11 +132,114 @@ void ExactSolver::factor(const ProgressCallback& progress) {
     b0_ -= system_.coupling * z;
   }
   // (b0 = 0 without alignment and frozen values: its response is zero, no solve.)
-  if (cache_columns_ && factor_)
-    base_response_ = b0_.isZero(0.0) ? ComplexVector(ComplexVector::Zero(N)) : factor_->solve(b0_);
-  else
+  if (cache_columns_ && factor_) {
+    const ComplexVector rhs = project(b0_);
+    base_response_ = rhs.isZero(0.0) ? ComplexVector(ComplexVector::Zero(N)) : factor_->solve(rhs);
+  } else {
     base_response_ = ComplexVector();
-  if (progress && !progress(1.0)) throw Cancelled("factorization cancelled");
+  }
+}
+
+void ExactSolver::set_alignment(const ComplexVector& alignment) {
+  const TriangleMesh& mesh = ops_->mesh();
+  if (alignment.size() > 0) {
+    if (alignment.size() != mesh.num_faces())
+      throw InputError("alignment field must have one value per face (" + std::to_string(mesh.num_faces()) +
+                       "), got " + std::to_string(alignment.size()));
+    if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
+  }
+  alignment_per_face_ = alignment;
+  update_alignment();
+}
+
+void ExactSolver::set_symmetry(std::shared_ptr<const MirrorMap> mirror) {
+  if (mirror) {
+    if (mirror->num_faces() != ops_->mesh().num_faces())
+      throw InputError("the mirror map belongs to another mesh (" + std::to_string(mirror->num_faces()) +
+                       " faces, not " + std::to_string(ops_->mesh().num_faces()) + ")");
+    for (const auto& [f, z] : frozen_) {
+      const int g = mirror->partner(f);
+      if (g >= 0 && !frozen_index_.count(g))
+        throw ConstraintError("face " + std::to_string(g) + " is free but its mirror face " + std::to_string(f) +
+                              " is frozen: with mirror symmetry both must be free or both frozen");
+    }
+  }
+  mirror_ = std::move(mirror);
+  smoothest_.resize(0);
+  // On symmetric fields only the symmetrized weights (W_f + W_g) / 2 matter (A_f = A_g, |z_f| = |z_g|); with
+  // them V commutes with the mirror, which the symmetric solve relies on. Weights that are not yet symmetric
+  // are symmetrized here (a new factorization).
+  bool refactor = false;
+  if (mirror_ && weight_per_face_.size() > 0) {
+    Eigen::VectorXd w = weight_per_face_;
+    for (int f = 0; f < static_cast<int>(w.size()); ++f) {
+      const int g = mirror_->partner(f);
+      if (g >= 0) w[f] = 0.5 * (weight_per_face_[f] + weight_per_face_[g]);
+    }
+    if (w != weight_per_face_) weight_per_face_ = std::move(w), refactor = true;
+  }
+  std::vector<int> vector_faces;
+  for (const auto& [f, c] : constraints_.faces)
+    if (c.kind == ConstraintSet::Kind::Vector) vector_faces.push_back(f);
+  if (!anchors_.empty() && anchor_closure(vector_faces) != anchors_) {
+    anchors_ = anchor_closure(vector_faces);
+    refactor = true;
+  }
+  if (refactor)
+    factor({});
+  else
+    update_alignment();
+}
+
+ComplexVector ExactSolver::project(const ComplexVector& z) const {
+  if (!mirror_ || z.size() == 0) return z;
+  const int n = ops_->n();
+  ComplexVector out = z;
+  for (int u = 0; u < num_unknowns(); ++u) {
+    const int f = system_.face_of_unknown[u], g = mirror_->partner(f);
+    const int v = g >= 0 ? system_.unknown_of_face[g] : -1;
+    if (v >= 0) out[v] = 0.5 * (z[v] + mirror_->map(f, z[u], n));
+  }
+  return out;
+}
+
+std::vector<ConstraintRow> ExactSolver::symmetric_rows(std::vector<ConstraintRow> rows) const {
+  if (mirror_)
+    for (auto& row : rows) row = mirror_->symmetrized(row, ops_->n());
+  return rows;
+}
+
+std::vector<int> ExactSolver::anchor_closure(const std::vector<int>& vector_faces) const {
+  std::vector<int> out = vector_faces;
+  if (mirror_)
+    for (int f : vector_faces)
+      if (mirror_->partner(f) >= 0) out.push_back(mirror_->partner(f));
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+void ExactSolver::symmetric_refinement(ComplexVector& field, const ComplexVector& rhs,
+                                       const std::vector<ConstraintRow>& rows) {
+  // `field` solves V w = P b - P D^T gamma with symmetrized rows and was projected onto the symmetric fields.
+  // If V commutes with the mirror it is the minimiser over symmetric fields. If the mesh is symmetric only up to
+  // the matching tolerance, the projected gradient g = P (b - V w) is not yet in the span of the rows: solve the
+  // same constrained problem for g (homogeneous rows) and add the projected correction. Each step divides the
+  // defect by ~1 / |VS - SV|; stop when the correction is at the level of rounding.
+  if (!(mirror_->max_mismatch() > 0)) return;
+  std::vector<ConstraintRow> homogeneous = rows;
+  for (auto& r : homogeneous) r.rhs = 0.0;
+  const double size = std::max(field.norm(), 1e-300);
+  for (int step = 0; step < 6; ++step) {
+    const ComplexVector g = rhs - project(ComplexVector(system_.matrix * field));
+    const ComplexVector base = factor_->solve(g);
+    Eigen::MatrixXd K;
+    const Response r = schur_solve(homogeneous, Response{&base, nullptr, {}}, K);
+    const ComplexVector delta = project(assemble(r));
+    field += delta;
+    symmetry_corrections_ = step + 1;
+    if (delta.norm() <= 1e-14 * size) break;
+  }
 }
 
 ComplexVector ExactSolver::to_faces(const ComplexVector& per_unknown) const {
@@ -136,10 +254,19 @@ Complex ExactSolver::fixed_value(int face) const {
   const auto frozen = frozen_index_.find(face);
   if (frozen != frozen_index_.end()) return frozen_[frozen->second].second;
   const auto c = constraints_.faces.find(face);
-  return c != constraints_.faces.end() && c->second.kind == ConstraintSet::Kind::Vector ? c->second.value : 0.0;
+  if (c != constraints_.faces.end() && c->second.kind == ConstraintSet::Kind::Vector) return c->second.value;
+  if (mirror_ && mirror_->partner(face) >= 0) {  // an anchor because its mirror face carries the constraint
+    const int g = mirror_->partner(face);
+    const auto m = constraints_.faces.find(g);
+    if (m != constraints_.faces.end() && m->second.kind == ConstraintSet::Kind::Vector)
+      return mirror_->map(g, m->second.value, ops_->n());
+  }
+  return 0.0;
 }
 
-bool ExactSolver::stale(const std::vector<int>& vector_faces) const {
+bool ExactSolver::stale(const std::vector<int>& given_faces) const {
+  // With symmetry a vector constraint also fixes its mirror face (fixed_value).
+  const std::vector<int> vector_faces = anchor_closure(given_faces);
   // Every anchor must still carry a vector constraint (its value is what the system substitutes) ...
   for (int a : anchors_)
     if (!std::binary_search(vector_faces.begin(), vector_faces.end(), a)) return true;
@@ -167,13 +294,14 @@ ComplexVector ExactSolver::solve() {
   for (const auto& [f, c] : constraints_.faces)
     if (c.kind == ConstraintSet::Kind::Vector) vector_faces.push_back(f);
   if (stale(vector_faces)) {
-    anchors_ = vector_faces;
+    anchors_ = anchor_closure(vector_faces);
     factor({});
   }
+  symmetry_corrections_ = 0;
   const int N = num_unknowns();
 
   // 3. The rows on the unknowns, and where the entries of V^-1 come from (cached columns or a direct solve).
-  const std::vector<ConstraintRow> all_rows = free_rows(constraints_.rows({}, 0.0));
+  const std::vector<ConstraintRow> all_rows = free_rows(symmetric_rows(constraints_.rows({}, 0.0)));
   std::vector<int> faces;
   for (const auto& [f, c] : constraints_.faces)
     if (system_.unknown_of_face[f] >= 0) faces.push_back(f);
@@ -208,6 +336,7 @@ ComplexVector ExactSolver::solve() {
   std::vector<bool> has_data = component_has_alignment_, has_rows(ncomp, false);
   std::unordered_map<int, Complex> loads;  // face -> weight of the unit load (spikes, anchors in live solves)
   ComplexVector b = b0_;
+  ComplexVector spikes = ComplexVector::Zero(N);  // the safeguard's part of b (before P)
   if (!anchors_.empty() && direct_) {  // -V_UA z_A into the right-hand side
     ComplexVector z = ComplexVector::Zero(static_cast<Eigen::Index>(system_.fixed_faces.size()));
     for (int a : anchors_) z[system_.fixed_of_face[a]] = fixed_value(a);
@@ -224,10 +353,15 @@ ComplexVector ExactSolver::solve() {
       // s_f = spike * mean_area / A_f: every constrained face adds the same weight s * mean_area * d to b.
       const Complex delta = safeguard_delta(spike_, mean_area, system_.mass[u], c.value, alignment_[u]);
       const Complex load = (rhs_scale * system_.mass[u]) * delta;
-      if (direct_)
-        b[u] += load;
-      else
+      spikes[u] += load;
+      if (direct_) {
+        b[u] += load;  // projected below
+      } else if (mirror_ && mirror_->partner(f) >= 0) {  // P (e_f load) = (e_f load + e_g T_f(load)) / 2
+        loads[f] += 0.5 * load;
+        loads[mirror_->partner(f)] += 0.5 * mirror_->map(f, load, o.n());
+      } else {
         loads[f] += load;
+      }
       if (rhs_scale != 0.0) has_data[comp] = true;
     } else if (std::abs(c.value) > 0) {
       has_data[comp] = true;
@@ -237,6 +371,18 @@ ComplexVector ExactSolver::solve() {
     has_rows[mesh.face_component()[rs.front().terms.front().first]] = true;
   // y = V^-1 b: in a direct solve only its values at the constrained faces (Gram matrix), the field comes from
   // one solve at the end; in a live solve the cached base response plus the loads' columns.
+  // The full right-hand side, for the symmetric defect correction: b0 - V_UF z_anchors + the safeguard.
+  ComplexVector b_full;
+  if (mirror_) {
+    b_full = b0_ + spikes;
+    if (!anchors_.empty()) {
+      ComplexVector z = ComplexVector::Zero(static_cast<Eigen::Index>(system_.fixed_faces.size()));
+      for (int a : anchors_) z[system_.fixed_of_face[a]] = fixed_value(a);
+      b_full -= system_.coupling * z;
+    }
+    b_full = project(b_full);
+    if (direct_) b = project(b);
+  }
   Response y;
   if (direct_) {
     if (!faces.empty()) compute_gram(faces, b);
@@ -259,6 +405,7 @@ ComplexVector ExactSolver::solve() {
     const ComplexVector full = smoothest_field(o);
     smoothest_.resize(N);
     for (int u = 0; u < N; ++u) smoothest_[u] = full[system_.face_of_unknown[u]];
+    smoothest_ = project(smoothest_);
   }
   auto restrict_to = [&](const ComplexVector& z, const std::vector<bool>& mask) {
     ComplexVector out = ComplexVector::Zero(N);
@@ -268,16 +415,20 @@ ComplexVector ExactSolver::solve() {
   };
 
   // 3-4, 6. The Schur solve with the +d pins, the checks, the snapping.
-  auto solve_with_pins = [&](const Response& response) {
+  auto solve_with_pins = [&](const Response& response, const ComplexVector& rhs_full) {
     OrientationPins pins;
     for (;;) {
-      const std::vector<ConstraintRow> rows = free_rows(constraints_.rows(pins.faces, pins.magnitude));
+      const std::vector<ConstraintRow> rows = free_rows(symmetric_rows(constraints_.rows(pins.faces, pins.magnitude)));
       Eigen::MatrixXd K;
       const Response w = schur_solve(rows, response, K);
       if (pins.faces.empty()) check_constrained_faces_carry_data(response, w);
       if (!pins.update(constraints_, [&](int f) { return value_at(w, f); })) continue;
       ComplexVector field = assemble(w);
       refine_rows(rows, K, field);
+      if (mirror_) {
+        field = project(field);
+        symmetric_refinement(field, rhs_full, rows);
+      }
       // The orientation once more on the assembled field: in a direct solve the values above come from the Gram
       // matrix, and a face whose value is at rounding level may come out on the other side.
       if (!pins.update(constraints_, [&](int f) {
@@ -288,10 +439,15 @@ ComplexVector ExactSolver::solve() {
       sign_fixed_ = pins.faces;
       check_rows_hold(to_faces(field));
       // Snap constrained faces onto their constraint: removes the rounding of the column combination
-      // (relative 1e-12 of the largest term), so constraints hold to the last bit.
+      // (relative 1e-12 of the largest term), so constraints hold to the last bit; with symmetry the mirror
+      // face takes the mirror image of the snapped value, so the symmetry holds to the last bit as well.
       for (const auto& [f, c] : constraints_.faces) {
         const int u = system_.unknown_of_face[f];
-        if (u >= 0) field[u] = pins.snapped(f, c, field[u]);
+        if (u < 0) continue;
+        field[u] = pins.snapped(f, c, field[u]);
+        const int g = mirror_ ? mirror_->partner(f) : -1;
+        if (g >= 0 && g != f && system_.unknown_of_face[g] >= 0)
+          field[system_.unknown_of_face[g]] = mirror_->map(f, field[u], o.n());
       }
       return field;
     }
@@ -299,16 +455,16 @@ ComplexVector ExactSolver::solve() {
 
   ComplexVector w;
   if (!any_homogeneous) {
-    w = solve_with_pins(y);
+    w = solve_with_pins(y, b_full);
   } else {
     // Inverse iteration on the homogeneous components: their "alignment" is the current iterate.
     ComplexVector seed = restrict_to(smoothest_, homogeneous);
     const ComplexVector y_full = y.base ? *y.base : factor_->solve(b);  // y as a vector (direct solves)
     for (int it = 0; it < 30; ++it) {
-      const ComplexVector load = system_.mass.cast<Complex>().cwiseProduct(seed);
+      const ComplexVector load = project(system_.mass.cast<Complex>().cwiseProduct(seed));
       const ComplexVector base = y_full + factor_->solve(load);
       Response shifted{&base, nullptr, y.coefficient};
-      w = solve_with_pins(shifted);
+      w = solve_with_pins(shifted, mirror_ ? ComplexVector(b_full + load) : b_full);
       ComplexVector next = restrict_to(w, homogeneous);
       const double norm = std::sqrt((next.cwiseAbs2().cwiseProduct(system_.mass)).sum());
       if (!(norm > 0)) throw SolverError("singularity constraints admit only the zero field here");

@@ -23,6 +23,10 @@ import bpy
 
 from . import (
     background,
+    guide_handlers,
+    guide_operators,
+    guide_panels,
+    guide_properties,
     handlers,
     hatching,
     material,
@@ -36,18 +40,28 @@ from . import (
 from .api import (  # noqa: F401  (public scripting API)
     NFieldError,
     add_constraint,
+    add_curve_guide,
     add_singularity,
     begin_region,
     cancel_region,
+    clear_comb,
     clear_constraints,
     clear_singularities,
+    comb,
     commit_region,
     configure,
     field,
+    guide_report,
+    mirror_design,
     precompute_spectral,
     release_layer,
     remove_constraint,
+    remove_curve_guide,
     remove_singularity,
+    set_cuts,
+    set_feature_alignment,
+    set_guide_attributes,
+    set_mirror_symmetry,
     solve,
     stale_items,
     sync,
@@ -57,7 +71,8 @@ from .hatching import build as build_hatching  # noqa: F401  (public scripting A
 from .material import build as build_anisotropic_material  # noqa: F401  (public scripting API)
 
 #: modules registered in this order (unregistered in reverse)
-_MODULES = (properties, operators, background, material, hatching, panels, overlay, tools, handlers)
+_MODULES = (properties, guide_properties, operators, guide_operators, background, material, hatching, panels,
+            guide_panels, overlay, tools, handlers, guide_handlers)
 _registered: list = []
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..core import DesignSession, DirectionConstraint, SingularityConstraint, VectorConstraint
-from . import design, mesh_read
+from . import design, guide_session, mesh_read
 from .errors import NFieldError
 from .mesh_read import MeshArrays
 
@@ -122,6 +122,7 @@ def ensure_session(obj, entry: CacheEntry, progress=None):
     if entry.extra.get("design_state") is None:
         _restore_layers_and_region(obj, entry)
     apply_design(obj, entry.session)
+    guide_session.apply_guides(entry.session, guide_session.desired_guides(obj))
     return entry.session
 
 
@@ -141,7 +142,8 @@ def session_recipe(obj, entry: CacheEntry, mode: str | None = None, k: int | Non
         settings["mode"] = mode.lower()
     if k is not None:
         settings["k"] = int(k)
-    return dict(mesh=entry.mesh, settings=settings, design=design.desired_design(obj))
+    return dict(mesh=entry.mesh, settings=settings, design=design.desired_design(obj),
+                guides=guide_session.desired_guides(obj))
 
 
 def build_session(recipe: dict, progress=None):
@@ -149,6 +151,7 @@ def build_session(recipe: dict, progress=None):
     Returns (session, result)."""
     session = DesignSession(recipe["mesh"], **recipe["settings"], progress=progress)
     apply_design(None, session, recipe["design"])
+    guide_session.apply_guides(session, recipe.get("guides"))
     result = session.solve()
     session.progress = None
     return session, result
@@ -179,6 +182,7 @@ def _restore_layers_and_region(obj, entry: CacheEntry) -> None:
         faces = [it.face for it in st.region_faces]
         try:
             apply_design(obj, session)
+            guide_session.apply_guides(session, guide_session.desired_guides(obj))
             if session.field is None:
                 session.solve()
             session.begin_region(faces)

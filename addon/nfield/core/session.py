@@ -38,6 +38,8 @@ in the session (nothing is dropped) and act again as soon as their faces are fre
 from __future__ import annotations
 
 import copy
+import dataclasses
+import hashlib
 import itertools
 import time
 import warnings
@@ -50,6 +52,9 @@ from ._loader import native
 from .constraints import DirectionConstraint, SingularityConstraint, VectorConstraint
 from .mesh import Mesh
 from . import spectral
+from .guides import _finite
+from .session_guides import SessionGuides
+from .session_live import SessionLive
 from .solve import (
     ALIGN_CHOICES,
     FieldResult,
@@ -73,6 +78,24 @@ ProgressCallback = Callable[[float], Any]
 SPECTRAL_RESIDUAL_WARNING = 1e-6
 
 _tokens = itertools.count(1)
+
+
+@dataclass
+class _SolveInputs:
+    """What one solve needs besides the settings (DesignSession._solve_inputs)."""
+
+    frozen_tris: np.ndarray
+    frozen_values: np.ndarray
+    frozen_key: Any
+    dirs: dict          # input face -> 3D direction (the user's constraints outside frozen faces)
+    vecs: dict          # input face -> 3D vector
+    sings: dict         # vertex -> index
+    kind: str           # "direction" | "vector"
+    guide_dirs: dict    # triangle -> unit representation vector (hard features and curves)
+    alignment: Any      # combined guide field per triangle (complex) or None
+    matrix_weight: Any  # per-triangle weight of the alignment term in n-vector splines, or None
+    report: Any         # GuideReport
+    weight_digest: Any  # hash of matrix_weight when it is not uniformly 1, else None
 
 
 def _token() -> int:
@@ -103,8 +126,9 @@ class _Region:
     token: int = field(default_factory=_token)
 
 
-class DesignSession:
-    """One mesh, its settings and its constraints, with a warm solver. See the module docstring."""
+class DesignSession(SessionGuides, SessionLive):
+    """One mesh, its settings and its constraints, with a warm solver. See the module docstring; guide
+    authoring (features, curves, comb, weights, cuts, symmetry) is in session_guides.py."""
 
     def __init__(self, mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength: float = 1.0,
                  weights: str = "geometric", alignment_field: Any = None, mode: str = "exact",
@@ -138,16 +162,25 @@ class DesignSession:
         self._reduced_key = None
         self._in_reduced: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
         self.field: FieldResult | None = None
+        self._guided_value = None
+        self._guided_key = None
+        self._guided_token = 0
+        self._weight_digest = None
+        self._solver_alignment = self._solver_mirror = None
+        self._init_guides()
+        self._init_live()
         self.configure(n=n, order=order, align=align, strength=strength, weights=weights,
-                       alignment_field=alignment_field, mode=mode, k=k, precision=precision)
+                       alignment_field=alignment_field, mode=mode, k=k, precision=precision, comb_weight=1.0)
 
     # ------------------------------------------------------------------ settings
     def configure(self, **settings: Any) -> None:
-        """Change n, order, align, strength, weights, alignment_field, mode, k or precision.
+        """Change n, order, align, strength, weights, alignment_field, mode, k, precision or comb_weight (the
+        comb's weight relative to the base guide, >= 0).
 
         The exact solver refactors lazily on the next solve (any change but mode, k, precision); in spectral
         mode a strength change is free and n or weights need another basis (from the cache or computed)."""
-        allowed = {"n", "order", "align", "strength", "weights", "alignment_field", "mode", "k", "precision"}
+        allowed = {"n", "order", "align", "strength", "weights", "alignment_field", "mode", "k", "precision",
+                   "comb_weight"}
         unknown = set(settings) - allowed
         if unknown:
             raise ValueError(f"unknown setting(s) {sorted(unknown)} (expected some of {sorted(allowed)})")
@@ -161,6 +194,7 @@ class DesignSession:
             raise ValueError(f"unknown solver mode {new['mode']!r} (expected 'exact' or 'spectral')")
         new["k"] = spectral.check_k(new["k"])  # against the mesh size when the basis is needed
         new["precision"] = spectral.check_precision(new["precision"])
+        new["comb_weight"] = _finite(new["comb_weight"], "comb weight", 0.0)
         if new["align"] not in ALIGN_CHOICES:
             raise ValueError(f"unknown align {new['align']!r} (expected one of {', '.join(ALIGN_CHOICES)})")
         if new["align"] == "field":
@@ -207,7 +241,7 @@ class DesignSession:
     def has_basis(self) -> bool:
         """True when the basis for the current settings is in memory (no computation before a solve)."""
         s = self._settings
-        if self._basis is None or self._ops_key != (s["n"], s["weights"]):
+        if self._basis is None or self._ops_key != self._ops_wanted():
             return False
         return self._basis_key == (self._ops_token, s["k"], s["precision"])
 
@@ -265,12 +299,12 @@ class DesignSession:
     def set_singularity(self, vertex: int, index: float) -> None:
         """Pin a singularity of the given index (a multiple of 1/n) at an interior vertex."""
         s = SingularityConstraint(int(vertex), float(index))
-        ((v, num),) = _singularity_numerators(self.mesh, [s], self._settings["n"])
+        ((v, num),) = _singularity_numerators(self.mesh, [s], self._settings["n"], self._solve_native_mesh())
         lo, hi = self.index_range(v)
         n = self._settings["n"]
         if not lo <= num / n <= hi:
             raise ValueError(f"vertex {v} cannot carry index {s.index:g}: with its ring of "
-                             f"{len(self.mesh.native.vertex_ring_faces(v))} faces the index must lie in "
+                             f"{len(self._solve_native_mesh().vertex_ring_faces(v))} faces the index must lie in "
                              f"[{lo:g}, {hi:g}] (multiples of 1/{n})")
         if self._region is not None and not self._ring_in_region(v):
             raise ValueError(f"vertex {v} is outside the region being edited")
@@ -377,59 +411,120 @@ class DesignSession:
         del self._layers[i]
 
     # ------------------------------------------------------------------ solving
-    def solve(self, details: bool = True) -> FieldResult:
+    def solve(self, details: bool = True, live: bool = False) -> FieldResult:
         """Solve with the current settings and constraints; returns (and keeps in .field) a FieldResult.
 
         details=False is for live dragging: it skips the energy (NaN) and the singularity search (None),
-        which cost more than the solve itself on large meshes."""
+        which cost more than the solve itself on large meshes. live=True is for guide edits during an
+        interaction (dragging a curve, a comb stroke, painting weights): an edit that changed guide weights is
+        solved exactly in a region around it with the rest held fixed (session_live.py; the result's
+        live_region says how many faces), and the global solve is left for later (pending_work())."""
         t0 = time.perf_counter()
         s = self._settings
         ops = self._operators()
-        frozen_tris, frozen_values, frozen_key, dirs, vecs, sings, kind = self._solve_inputs()
-        if s["mode"] == "spectral" and not frozen_tris.size:
-            w, lam, sign_fixed = self._solve_reduced(ops, kind, dirs, vecs, sings)
+        inputs = self._solve_inputs()
+        region = None
+        if self._spectral_applies(inputs):
+            w, lam, sign_fixed = self._solve_reduced(ops, inputs)
             mode, basis_size = "spectral", int(self._basis.size)
         else:
-            w, lam, sign_fixed = self._solve_exact(ops, kind, dirs, vecs, sings, frozen_tris, frozen_values,
-                                                   frozen_key)
+            region = self._live_region(inputs) if live else None
+            if region is not None:
+                w, lam, sign_fixed = self._solve_local(ops, inputs, region)
+            else:
+                w, lam, sign_fixed = self._solve_exact(ops, inputs)
+                self._remember_global(inputs, w)
             mode, basis_size = "exact", None
         u = _normalize(w)
         self._dirty = False
+        self.guide_report = inputs.report
         self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
                              strength=s["strength"], weights=s["weights"], lam=lam, sign_fixed=sign_fixed,
-                             t0=t0, details=details, mode=mode, basis_size=basis_size)
+                             t0=t0, details=details, mode=mode, basis_size=basis_size, guides=inputs.report)
+        self.field.live_region = None if region is None else int(len(region))
         return self.field
+
+    def _spectral_applies(self, inputs: "_SolveInputs") -> bool:
+        """Spectral mode solves in the basis unless the problem needs what the basis cannot hold: frozen faces
+        (region edits, layers), mirror symmetry and non-uniform guide weights (the weights make U^H V U a dense
+        k x k matrix instead of a diagonal) use the exact solver (docs/guides.md)."""
+        return (self._settings["mode"] == "spectral" and not inputs.frozen_tris.size and self._mirror is None
+                and inputs.weight_digest is None)
+
+    def _weight_arguments(self, inputs: "_SolveInputs") -> dict:
+        """ExactSolver keywords for the guide weights: none when they are uniformly 1 (the plain system)."""
+        return {} if inputs.weight_digest is None else {"alignment_weight": inputs.matrix_weight}
 
     def pending_work(self) -> str | None:
         """What the next solve() must compute before it can solve: "basis" (spectral mode, the basis is
         neither in memory nor cached: minutes), "factorization" (exact mode with new settings, constraints
         kind or frozen faces: about a second per 100k faces), or None (a fast incremental solve). Lets a UI
         move the long work to a worker thread."""
-        s = self._settings
-        frozen_tris, _values, frozen_key, _dirs, _vecs, _sings, kind = self._solve_inputs()
-        if s["mode"] == "spectral" and not frozen_tris.size:
+        inputs = self._solve_inputs()
+        if self._spectral_applies(inputs):
             return None if self.basis_available() else "basis"
-        if self._ops_key != (s["n"], s["weights"]) or self._solver is None:
+        if self._ops_key != self._ops_wanted() or self._solver is None or self._global_due:
             return "factorization"
-        if self._exact_key(kind, frozen_key) != self._solver_key:
+        if self._exact_key(inputs) != self._solver_key:
             return "factorization"
-        return "factorization" if self._solver.needs_refactorization(self._vector_triangles(_vecs)) else None
+        return "factorization" if self._solver.needs_refactorization(self._vector_triangles(inputs.vecs)) else None
 
-    def _solve_inputs(self):
-        """(frozen triangles, values, key, direction, vector and singularity constraints outside them, kind)."""
+    def _solve_inputs(self) -> "_SolveInputs":
+        """Frozen faces, the constraints outside them, the guide field and the hard guide constraints."""
         frozen_tris, frozen_values, frozen_key = self._frozen()
         frozen_set = set(frozen_tris.tolist())
+        nm = self._solve_native_mesh()
         dirs = {f: d for f, d in self._dirs.items() if not self._face_frozen(f, frozen_set)}
         vecs = {f: v for f, v in self._vecs.items() if not self._face_frozen(f, frozen_set)}
-        sings = {v: i for v, i in self._sings.items()
-                 if not any(t in frozen_set for t in self.mesh.native.vertex_ring_faces(v))}
-        kind = "vector" if vecs and not dirs else "direction"
-        return frozen_tris, frozen_values, frozen_key, dirs, vecs, sings, kind
+        sings = {v: i for v, i in self._sings.items() if not any(t in frozen_set for t in nm.vertex_ring_faces(v))}
+        alignment, matrix_weight, hard, report = self._guided(self._operators())
+        # Hard guide directions give way to the user's own constraints and singularities on the same faces.
+        report = dataclasses.replace(report, dropped=list(report.dropped))
+        user = {self.mesh.face_triangle(f): f for f in itertools.chain(self._dirs, self._vecs)}
+        ring = {t: v for v in self._sings for t in nm.vertex_ring_faces(v)}
+        guide_dirs = {}
+        for t, z in hard.items():
+            if t in frozen_set:
+                continue  # held by its frozen value
+            if t in user:
+                report.dropped.append({"face": int(self.mesh.triangle_face[t]), "triangle": t,
+                                       "reason": f"the user's constraint on face {user[t]} takes its place"})
+            elif t in ring:
+                report.dropped.append({"face": int(self.mesh.triangle_face[t]), "triangle": t,
+                                       "reason": f"on the ring of the singularity at vertex {ring[t]}"})
+            else:
+                guide_dirs[t] = z
+        report.hard_constraints = len(guide_dirs)
+        kind = "vector" if vecs and not dirs and not guide_dirs else "direction"
+        return _SolveInputs(frozen_tris, frozen_values, frozen_key, dirs, vecs, sings, kind, guide_dirs, alignment,
+                            matrix_weight, report, self._weight_digest)
 
-    def _exact_key(self, kind: str, frozen_key) -> tuple:
-        """What the ExactSolver's factorization depends on."""
+    def _guided(self, ops):
+        """The combined guide field and hard guide directions (guides.py), cached by what they depend on."""
         s = self._settings
-        return (self._ops_token, s["order"], s["strength"], s["align"], self._alignment_version(), kind, frozen_key)
+        key = (self._ops_token, s["order"], self._alignment_version(), self._guide_version, s["comb_weight"],
+               id(self._mirror))
+        if self._guided_key != key:
+            self._guide.comb_weight = s["comb_weight"]
+            self._guided_value = self._guide_alignment(ops, self._alignment_field(ops))
+            self._guided_key = key
+            self._guided_token = _token()
+            weight = self._guided_value[1]
+            active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
+            uniform = weight is None or bool(np.all(weight[active] == 1.0))
+            self._weight_digest = None if uniform else hashlib.blake2b(
+                np.ascontiguousarray(weight).tobytes(), digest_size=16).hexdigest()
+        return self._guided_value
+
+    def _exact_key(self, inputs: "_SolveInputs") -> tuple:
+        """What the ExactSolver's factorization depends on: not the guide targets (set_alignment changes the
+        right-hand side only), but the guide weights, which are part of V."""
+        s = self._settings
+        # (an n-vector spline without any guide value uses a small regularisation instead of the strength:
+        # whether there is one decides lambda, so it belongs to the key)
+        no_target = inputs.kind == "vector" and inputs.alignment is None
+        return (self._ops_token, s["order"], s["strength"], inputs.weight_digest, inputs.kind, inputs.frozen_key,
+                no_target)
 
     @property
     def constraint_residual(self) -> float:
@@ -443,45 +538,61 @@ class DesignSession:
     def _vector_triangles(self, vecs: dict) -> list[int]:
         return sorted(int(self.mesh.face_triangle(f)) for f in vecs)
 
-    def _solve_exact(self, ops, kind, dirs, vecs, sings, frozen_tris, frozen_values, frozen_key):
+    def _solve_exact(self, ops, inputs: "_SolveInputs"):
         s = self._settings
-        key = self._exact_key(kind, frozen_key)
-        vec_tris = self._vector_triangles(vecs)
+        key = self._exact_key(inputs)
+        frozen_tris, frozen_values = inputs.frozen_tris, inputs.frozen_values
+        vec_tris = self._vector_triangles(inputs.vecs)
         if self._solver is None or key != self._solver_key or self._solver.needs_refactorization(vec_tris):
-            # lambda = 0 (n-vector spline without alignment): the vector constraints are the anchors that keep
-            # V positive definite on flat meshes (spline_solver.hpp); otherwise no anchors (none needed).
-            anchored = kind == "vector" and s["align"] == "none"
-            solver = native().ExactSolver(ops, s["order"], s["strength"], self._alignment_field(ops), kind,
+            # lambda = 0 (n-vector spline without any guide value): the vector constraints are the anchors that
+            # keep V positive definite on flat meshes (spline_solver.hpp); otherwise no anchors (none needed).
+            anchored = inputs.kind == "vector" and inputs.alignment is None
+            solver = native().ExactSolver(ops, s["order"], s["strength"], inputs.alignment, inputs.kind,
                                           progress=self.progress,
                                           frozen_faces=frozen_tris if frozen_tris.size else None,
                                           frozen_values=frozen_values if frozen_tris.size else None,
-                                          anchor_faces=np.asarray(vec_tris, dtype=np.int64) if anchored else None)
+                                          anchor_faces=np.asarray(vec_tris, dtype=np.int64) if anchored else None,
+                                          **self._weight_arguments(inputs))
             # Only replace the old solver once the new one exists: a failed or cancelled factorization
             # leaves the session as it was.
             self._solver, self._solver_key = solver, key
+            self._solver_alignment, self._solver_mirror = self._guided_token, None
             self._in_solver = {"dir": {}, "vec": {}, "sing": {}}
+        if self._solver_alignment != self._guided_token:
+            self._solver.set_alignment(inputs.alignment)  # a guide edit: right-hand side only
+            self._solver_alignment = self._guided_token
+        if self._solver_mirror is not self._mirror:
+            self._solver.set_symmetry(self._mirror)
+            self._solver_mirror = self._mirror
+            self._in_solver = self._sync(self._solver, self._in_solver, ops, dataclasses.replace(
+                inputs, dirs={}, vecs={}, sings={}, guide_dirs={}))  # re-place every constraint below
         try:
-            self._in_solver = self._sync(self._solver, self._in_solver, ops, dirs, vecs, sings)
+            self._in_solver = self._sync(self._solver, self._in_solver, ops, inputs)
         except Exception:
             self._solver = self._solver_key = None  # its constraint state is unknown now: rebuild next time
             raise
         w = np.asarray(self._solver.solve(), dtype=np.complex128)
         return w, float(self._solver.lambda_), list(self._solver.sign_fixed_faces)
 
-    def _solve_reduced(self, ops, kind, dirs, vecs, sings):
+    def _solve_reduced(self, ops, inputs: "_SolveInputs"):
         s = self._settings
         self.precompute()
-        # The strength is not part of the key: it only changes the diagonal Lambda (set_strength, O(k)).
-        key = (self._basis_key, s["order"], s["align"], self._alignment_version(), kind)
+        # Neither the strength nor the guide field is part of the key: a strength change only changes the
+        # diagonal Lambda (set_strength, O(k)), a guide edit only the projection U^H M u' (set_alignment, O(N k)).
+        key = (self._basis_key, s["order"], inputs.kind)
         if self._reduced is None or key != self._reduced_key:
-            solver = native().ReducedSolver(ops, self._basis, s["order"], s["strength"], self._alignment_field(ops),
-                                            kind)
+            solver = native().ReducedSolver(ops, self._basis, s["order"], s["strength"], inputs.alignment,
+                                            inputs.kind)
             self._reduced, self._reduced_key = solver, key
+            self._reduced_alignment = self._guided_token
             self._in_reduced = {"dir": {}, "vec": {}, "sing": {}}
         else:
             self._reduced.set_strength(s["strength"])
+            if self._reduced_alignment != self._guided_token:
+                self._reduced.set_alignment(inputs.alignment)
+                self._reduced_alignment = self._guided_token
         try:
-            self._in_reduced = self._sync(self._reduced, self._in_reduced, ops, dirs, vecs, sings)
+            self._in_reduced = self._sync(self._reduced, self._in_reduced, ops, inputs)
         except Exception:
             self._reduced = self._reduced_key = None
             raise
@@ -506,13 +617,24 @@ class DesignSession:
 
     def _ring_in_region(self, v: int) -> bool:
         region = set(self._region.triangles.tolist())
-        return all(t in region for t in self.mesh.native.vertex_ring_faces(v))
+        return all(t in region for t in self._solve_native_mesh().vertex_ring_faces(v))
 
     def _face_frozen(self, face: int, frozen_set: set) -> bool:
         return int(self.mesh.face_triangle(face)) in frozen_set
 
     def _frozen(self):
-        """(triangles, values, key) of the faces held fixed in the next solve."""
+        """(triangles, values, key) of the faces held fixed in the next solve. With mirror symmetry a face is
+        held only if its mirror face is held too (the symmetric solve needs both or neither)."""
+        tris, values, key = self._frozen_unclosed()
+        if self._mirror is not None and tris.size:
+            partner = np.asarray(self._mirror.partner)
+            held = np.zeros(self.mesh.num_triangles, dtype=bool)
+            held[tris] = True
+            keep = (partner[tris] < 0) | held[np.maximum(partner[tris], 0)]
+            tris, values = tris[keep], values[keep]
+        return tris, values, key
+
+    def _frozen_unclosed(self):
         if self._region is not None:
             active = np.asarray(self.mesh.native.face_active, dtype=bool)
             free = np.zeros(self.mesh.num_triangles, dtype=bool)
@@ -528,10 +650,14 @@ class DesignSession:
         keep = len(tris) - 1 - last
         return tris[keep], values[keep], tuple(layer.token for layer in self._layers)
 
+    def _ops_wanted(self) -> tuple:
+        """What the operators depend on: n, the edge weights and the cuts."""
+        return (self._settings["n"], self._settings["weights"], self._cuts_token)
+
     def _operators(self):
-        key = (self._settings["n"], self._settings["weights"])
+        key = self._ops_wanted()
         if self._ops_key != key:
-            self._ops = native().FieldOperators(self.mesh.native, *key)
+            self._ops = native().FieldOperators(self._solve_native_mesh(), *key[:2])
             self._ops_key = key
             self._ops_token = _token()
             self._alignment_key = None
@@ -559,10 +685,11 @@ class DesignSession:
             self._alignment_key = key
         return self._alignment
 
-    def _sync(self, solver, have: dict, ops, dirs: dict, vecs: dict, sings: dict) -> dict:
+    def _sync(self, solver, have: dict, ops, inputs: "_SolveInputs") -> dict:
         """Bring a native solver's constraints from state `have` to the wanted one with the fewest calls;
         returns the new state."""
-        want: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
+        dirs, vecs, sings = inputs.dirs, inputs.vecs, inputs.sings
+        want: dict[str, dict] = {"dir": dict(inputs.guide_dirs), "vec": {}, "sing": {}}
         for kind, items in (("dir", dirs), ("vec", vecs)):
             if items:
                 faces = list(items)
@@ -573,6 +700,8 @@ class DesignSession:
         n = self._settings["n"]
         for v, index in sings.items():
             want["sing"][v] = int(round(index * n))
+        if self._mirror is not None and getattr(solver, "symmetric", False):
+            want = self._symmetric_constraints(want, set(inputs.guide_dirs))
         for t in set(have["dir"]) | set(have["vec"]):
             if t not in want["dir"] and t not in want["vec"]:
                 solver.remove_constraint(t)

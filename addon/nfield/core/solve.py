@@ -70,6 +70,8 @@ class FieldResult:
     lambda_: float | None = None
     mode: str = "exact"              # "exact" or "spectral" (reduced solve in a basis of basis_size eigenfields)
     basis_size: int | None = None
+    guides: Any = None               # GuideReport of the solve (DesignSession), None without guides
+    live_region: int | None = None   # faces re-solved by a live local solve (DesignSession.solve(live=True))
     _all_directions: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
 
     @property
@@ -97,6 +99,7 @@ class FieldResult:
             "sign_fixed_faces": [int(f) for f in self.sign_fixed_faces],
             "mesh_report": self.mesh_report,
             "seconds": self.seconds,
+            "guides": None if self.guides is None else self.guides.to_dict(),
         })
 
 
@@ -220,16 +223,19 @@ def _check_duplicates(dirs, vecs, sings) -> None:
         seen_v.add(s.vertex)
 
 
-def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], n: int) -> list[tuple[int, int]]:
+def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], n: int,
+                            native_mesh: Any = None) -> list[tuple[int, int]]:
+    """native_mesh: the mesh the field lives on when it differs from mesh.native (cut open along cuts)."""
+    nm = mesh.native if native_mesh is None else native_mesh
     out = []
     for s in sings:
         if not 0 <= s.vertex < mesh.num_vertices:
             raise ValueError(f"singularity vertex {s.vertex} is out of range: the mesh has {mesh.num_vertices} "
                              f"vertices (valid indices 0..{mesh.num_vertices - 1})")
-        if not mesh.native.vertex_is_interior(s.vertex):
+        if not nm.vertex_is_interior(s.vertex):
             raise ValueError(f"singularity vertex {s.vertex} is not an interior vertex (it is on the boundary, "
-                             f"non-manifold, unused or next to an excluded face): only interior vertices carry "
-                             f"an index")
+                             f"on a cut, non-manifold, unused or next to an excluded face): only interior vertices "
+                             f"carry an index")
         num = s.index * n
         rounded = round(num)
         if abs(num - rounded) > INDEX_TOLERANCE:
@@ -265,7 +271,7 @@ def _frames(ops) -> np.ndarray:
 
 
 def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
-            details: bool = True, mode: str = "exact", basis_size: int | None = None) -> FieldResult:
+            details: bool = True, mode: str = "exact", basis_size: int | None = None, guides: Any = None) -> FieldResult:
     """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
     nat = native()
     # The first direction from the frames; the n-fold set on demand (all_directions()).
@@ -287,7 +293,7 @@ def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, s
         representation=u, raw_solution=w,
         directions=first,
         singularities=sings, energy=energy, seconds=time.perf_counter() - t0,
-        sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, mode=mode, basis_size=basis_size,
+        sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, mode=mode, basis_size=basis_size, guides=guides,
         _all_directions=all_faces,
     )
 
@@ -295,7 +301,9 @@ def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, s
 # ---------------------------------------------------------------------- public API
 def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength: float = 1.0,
           constraints: Iterable = (), vector_constraints: Iterable = (), singularities: Iterable = (),
-          weights: str = "geometric", alignment_field: Any = None) -> FieldResult:
+          weights: str = "geometric", alignment_field: Any = None, *, features: Any = None,
+          alignment_weight: Any = None, alignment_rotation: Any = None, curves: Any = None, cuts: Any = None,
+          symmetry: Any = None) -> FieldResult:
     """Design an n-direction field (n-field spline, paper sections 4-7).
 
     mesh : nfield.core.Mesh.
@@ -310,9 +318,21 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
         added as value constraints.
     singularities : SingularityConstraint (index a multiple of 1/n, interior vertices only).
     weights : "geometric" | "combinatorial".
+    Guides (nfield.core.guides, docs/guides.md), keyword-only:
+    features : a FeatureGuide or a spec string such as "boundary,sharp:30" (soft mode, defaults).
+    alignment_weight, alignment_rotation : per input face, the base alignment's weight (>= 0) and turn (radians).
+    curves : {name: CurveGuide} (or a list, named by position).
+    cuts : (k, 2) vertex pairs of edges across which the field may jump.
+    symmetry : a Symmetry, or an axis "x" | "y" | "z" (exact mirror symmetry; refuses unmatched faces).
+    With any guide the solve runs through a DesignSession (same result type, with `guides`, the GuideReport).
 
     Raises ValueError (bad parameter or constraint; the message names it) or RuntimeError (numerical failure).
     """
+    if any(x is not None for x in (features, alignment_weight, alignment_rotation, curves, cuts, symmetry)):
+        return _solve_guided(mesh, n=n, order=order, align=align, strength=strength, constraints=constraints,
+                             vector_constraints=vector_constraints, singularities=singularities, weights=weights,
+                             alignment_field=alignment_field, features=features, alignment_weight=alignment_weight,
+                             alignment_rotation=alignment_rotation, curves=curves, cuts=cuts, symmetry=symmetry)
     t0 = time.perf_counter()
     mesh = _check_mesh(mesh)
     n = _check_n(n)
@@ -375,6 +395,44 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
     lam = getattr(solver, "lambda_", None)
     return _result(mesh, ops, u, w, n=n, order=order, align=align, strength=strength, weights=weights,
                    lam=None if lam is None else float(lam), sign_fixed=list(solver.sign_fixed_faces), t0=t0)
+
+
+def _solve_guided(mesh: Mesh, *, n, order, align, strength, constraints, vector_constraints, singularities, weights,
+                  alignment_field, features, alignment_weight, alignment_rotation, curves, cuts, symmetry) -> FieldResult:
+    """solve() with guides: one DesignSession, set up and solved once."""
+    from .session import DesignSession
+
+    t0 = time.perf_counter()
+    mesh = _check_mesh(mesh)
+    if align == "field" and alignment_field is None:
+        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
+    if align != "field" and alignment_field is not None:
+        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
+    dirs, vecs, sings = _sort_constraints(constraints, vector_constraints, singularities)
+    _check_duplicates(dirs, vecs, sings)
+    s = DesignSession(mesh, n=n, order=order, align=align, strength=strength, weights=weights,
+                      alignment_field=alignment_field)
+    if cuts is not None:
+        s.set_cuts(cuts)
+    if symmetry is not None:
+        s.set_symmetry(symmetry)
+    if features is not None:
+        s.set_features(features)
+    s.set_alignment_weight(alignment_weight)
+    s.set_alignment_rotation(alignment_rotation)
+    if curves is not None:
+        items = curves.items() if isinstance(curves, dict) else ((str(i), c) for i, c in enumerate(curves))
+        for name, c in items:
+            s.set_curve(str(name), c)
+    for c in dirs:
+        s.set_direction(c.face, c.direction)
+    for c in vecs:
+        s.set_vector(c.face, c.vector)
+    for c in sings:
+        s.set_singularity(c.vertex, c.index)
+    result = s.solve()
+    result.seconds = time.perf_counter() - t0
+    return result
 
 
 def _native_call(fn, args, mesh: Mesh, face: int, tri: int) -> None:

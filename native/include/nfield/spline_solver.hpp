@@ -75,6 +75,20 @@
 // side b0 in factor()); linear relations between faces (mirror symmetry, constraints across a cut) as rows of a
 // ConstraintSet (constraints.hpp), which the Schur system takes as they are (solve() step 5 must also count them
 // when it looks for components with rows); the connection (cuts) in operators.hpp.
+//
+// Guides (docs/guides.md). `alignment_weight` W >= 0 per face turns the alignment term into
+// |lambda| (u - g)^H M_W (u - g): V = E_m - lambda M_W, and the alignment argument is then the weighted target
+// W g (b = M W g, times -lambda for n-vector splines). set_alignment() changes the target only: the right-hand
+// side, one solve, no refactorization.
+// Mirror symmetry (set_symmetry, mirror.hpp): the solve is restricted to the fields with u(mirror f) =
+// T_f(u(f)), T_f real-linear, by working with the projector P = (I + S) / 2 instead of 35k constraint rows: the
+// right-hand side is P b, every constraint row is written symmetrically (it then also holds at the mirror
+// face), and the solution V^-1 (P b - P D^T gamma) is projected with P. When V commutes with S (an exactly
+// symmetric mesh) that is the exact minimiser over symmetric fields, with no new factorization; when the mesh is
+// symmetric only up to the matching tolerance the projected solution is off by O(|VS - SV|^2) and a defect
+// correction (the same solve for the residual P (b - V w), homogeneous rows) removes that to rounding.
+// Fixed faces must come in mirror pairs: frozen faces (checked), anchors (their mirror faces are anchored with
+// the mirror image of the value).
 #pragma once
 #include <limits>
 #include <memory>
@@ -86,6 +100,7 @@
 #include "nfield/constraint_system.hpp"
 #include "nfield/constraints.hpp"
 #include "nfield/hermitian_factor.hpp"
+#include "nfield/mirror.hpp"
 #include "nfield/operators.hpp"
 #include "nfield/spectrum.hpp"
 #include "nfield/spline_system.hpp"
@@ -114,10 +129,12 @@ class ExactSolver : public ConstraintEditor {
   /// `frozen`: (face, value) pairs held fixed; ConstraintError for inactive/out-of-range faces.
   /// `anchors`: faces whose n-vector constraints are eliminated (see above); ConstraintError for inactive,
   /// out-of-range, frozen or repeated faces. `cache_columns` = false: a one-shot solver (direct solves).
+  /// `alignment_weight`: W per face (>= 0, finite; empty: 1 everywhere), see "Guides" above.
   ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength, const ComplexVector& alignment,
               SplineKind kind, double lambda_override = std::numeric_limits<double>::quiet_NaN(),
               const ProgressCallback& progress = {}, const std::vector<std::pair<int, Complex>>& frozen = {},
-              const std::vector<int>& anchors = {}, bool cache_columns = true);
+              const std::vector<int>& anchors = {}, bool cache_columns = true,
+              const Eigen::VectorXd& alignment_weight = Eigen::VectorXd());
 
   const FieldOperators& operators() const { return *ops_; }
   int order() const { return order_; }
@@ -127,6 +144,15 @@ class ExactSolver : public ConstraintEditor {
   // Constraint editing (set_direction_constraint, set_vector_constraint, remove_constraint, set_singularity,
   // remove_singularity, clear_constraints, constraints): ConstraintEditor (constraint_system.hpp); faces
   // frozen here are refused.
+
+  /// New guide target values (W g per face, or empty for none): only the right-hand side changes.
+  void set_alignment(const ComplexVector& alignment);
+  /// Solve on the mirror-symmetric fields of `mirror` (null: no symmetry). ConstraintError when a free face has
+  /// a frozen mirror face; InputError for a map of another mesh.
+  void set_symmetry(std::shared_ptr<const MirrorMap> mirror);
+  bool symmetric() const { return mirror_ != nullptr; }
+  /// Defect-correction steps of the last solve (0 without symmetry or on an exactly symmetric mesh).
+  int symmetry_corrections() const { return symmetry_corrections_; }
 
   /// The raw solution w per face (not normalized; zero on inactive faces).
   ComplexVector solve();
@@ -148,6 +174,17 @@ class ExactSolver : public ConstraintEditor {
  private:
   bool face_fixed(int face) const override { return frozen_index_.count(face) > 0; }
   void factor(const ProgressCallback& progress);
+  /// alignment_, the safeguard's s_0, the components with data, b0_ and (live) its response, from
+  /// alignment_per_face_ and the current system.
+  void update_alignment();
+  /// P z per unknown (identity without symmetry).
+  ComplexVector project(const ComplexVector& z) const;
+  /// Rows written symmetrically (identity without symmetry).
+  std::vector<ConstraintRow> symmetric_rows(std::vector<ConstraintRow> rows) const;
+  /// Defect correction of a projected symmetric solution (see "Guides" above); rhs is the full right-hand side.
+  void symmetric_refinement(ComplexVector& field, const ComplexVector& rhs, const std::vector<ConstraintRow>& rows);
+  /// The faces to anchor for these vector-constrained faces: themselves and, with symmetry, their mirror faces.
+  std::vector<int> anchor_closure(const std::vector<int>& vector_faces) const;
   bool stale(const std::vector<int>& vector_faces) const;
   Complex fixed_value(int face) const;  ///< frozen value or the anchor's vector constraint
 
@@ -200,6 +237,9 @@ class ExactSolver : public ConstraintEditor {
   std::unordered_map<int, size_t> frozen_index_;
   std::vector<int> anchors_;
   ComplexVector alignment_per_face_;  ///< as given (empty for none)
+  Eigen::VectorXd weight_per_face_;   ///< alignment weights W as given (empty: 1)
+  std::shared_ptr<const MirrorMap> mirror_;
+  int symmetry_corrections_ = 0;
 
   // The factored system and what was derived from it.
   SplineSystem system_;

@@ -12,9 +12,10 @@
 // solver adds them through the Schur complement (spline_solver.hpp), and a row's terms on fixed faces are
 // known values that move to its right-hand side.
 //
-// Where to extend: assemble_spline_system() is the one place the matrix is assembled. Per-face weights of the
-// alignment term change the -lambda M diagonal; new linear relations between faces (symmetry) are constraint
-// rows (constraints.hpp), not matrix entries; cuts change E_m itself (the connection, operators.hpp).
+// Where to extend: assemble_spline_system() is the one place the matrix is assembled. Per-face weights W of the
+// alignment term (guides, docs/guides.md) change the -lambda M diagonal into -lambda M_W = -lambda diag(A_f W_f);
+// mirror symmetry restricts the solve to symmetric fields (spline_solver.hpp, mirror.hpp); cuts change E_m
+// itself (the mesh is cut open, mesh_cuts.hpp).
 //
 // The shift. With lambda = 0 (an n-vector spline without alignment: eq. 8 without its alignment term) V = E_m,
 // which is singular on a component whose connection has trivial holonomy (a flat or developable piece: its
@@ -53,10 +54,13 @@ struct SplineSystem {
   bool fixed(int face) const { return fixed_of_face[face] >= 0; }
 };
 
-/// Builds the system of order m (1..4) for V = E_m - lambda M with the given fixed faces (active, distinct;
-/// checked by the caller). Components without a fixed face are shifted when lambda == 0 (see above). No unknown
-/// left (every face fixed) gives an empty system.
+/// Builds the system of order m (1..4) for V = E_m - lambda M_W with the given fixed faces (active, distinct;
+/// checked by the caller) and alignment weights W per face (empty: 1 everywhere; >= 0, checked by the caller).
+/// Components without a fixed face are shifted when lambda == 0 (see above). No unknown left (every face
+/// fixed) gives an empty system. When most faces are fixed (a local solve) only the rows of E_m of the unknowns
+/// are formed (energy_rows.hpp), at a cost proportional to them.
 SplineSystem assemble_spline_system(const FieldOperators& ops, int order, double lambda,
-                                    const std::vector<int>& fixed_faces);
+                                    const std::vector<int>& fixed_faces,
+                                    const Eigen::VectorXd& weight = Eigen::VectorXd());
 
 }  // namespace nfield

@@ -1,0 +1,201 @@
+"""Benchmark of live guide edits in the exact session (docs/guides.md, section 7).
+
+For each mesh: a 4-direction field, curvature-max alignment, strength 1, the biharmonic (order 2) and the
+harmonic (order 1) energy, 30 random hard direction constraints, one soft curve guide (a closed loop through
+the surface, width 2 % of the diagonal) and a comb stroke's worth of comb field, solved globally once. Then,
+each repeated --repeats times (medians):
+
+  curve move     translate the curve by 0.5 % of the diagonal (set_curve) + solve(live=True): the curve's band
+                 moves, so the guide weights change; solved exactly in a region, the rest held fixed
+  comb stroke    one stroke of 12 samples, radius 3 % of the diagonal (comb) + solve(live=True)
+  weight change  set the alignment weight to 0 in a disk of radius 4 % of the diagonal (set_alignment_weight)
+                 + solve(live=True)
+  target change  turn the base guide by 30 degrees in the same disk (set_alignment_rotation) + solve(): only
+                 the right-hand side changes, the global factorization is reused (one back-substitution)
+  global re-solve after an edit: solve() with the new weights (a new factorization): what the background
+                 solve of pending_work() does when the interaction pauses, and what every weight edit would
+                 cost without the live region
+
+Each edit is split into the guide computation (projection, layers, combination; Python + native) and the
+solve. Prints JSON and a Markdown table and writes bench/results/guides.{json,md} (--quick: the rocker arm,
+guides_quick.*). Every mesh runs in its own subprocess.
+
+Usage: python bench/guides.py [--quick] [--meshes a.obj,b.obj] [--repeats 7]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import common  # noqa: E402
+
+MESHES = ["stanford-bunny.obj", "armadillo.obj"]
+QUICK_MESHES = ["rocker-arm.obj"]
+NUM_CONSTRAINTS = 30
+TARGET_MS = 100.0  # issue 14: a live guide edit under 100 ms in the exact session
+
+
+def loop_through(mesh):
+    """A closed polyline near the surface: the mesh's vertices nearest to a circle around its centre in the
+    plane of its two largest extents, smoothed (a curve a user could have drawn on the model)."""
+    import numpy as np
+
+    V = mesh.vertices
+    c = V.mean(axis=0)
+    ext = V.max(axis=0) - V.min(axis=0)
+    a, b = np.argsort(ext)[::-1][:2]
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    ring = np.tile(c, (len(t), 1))
+    ring[:, a] += 0.3 * ext[a] * np.cos(t)
+    ring[:, b] += 0.3 * ext[b] * np.sin(t)
+    # pull each point to the nearest vertex, then smooth: the loop lies on (or very near) the surface
+    near = np.array([V[np.argmin(((V - p) ** 2).sum(axis=1))] for p in ring])
+    for _ in range(3):
+        near = 0.5 * near + 0.25 * (np.roll(near, 1, axis=0) + np.roll(near, -1, axis=0))
+    return np.vstack([near, near[:1]])
+
+
+def measure_one(name: str, repeats: int, seed: int) -> dict:
+    import numpy as np
+    from nfield.core import DesignSession, Mesh
+
+    rng = np.random.default_rng(seed)
+    mesh = Mesh.from_file(common.DATA / name)
+    diag = float(mesh.native.bounding_box_diagonal)
+    F = mesh.num_faces
+    cent = mesh.vertices[mesh.faces].mean(axis=1)
+    normals = np.asarray(mesh.native.face_normals)
+    active = np.flatnonzero(np.asarray(mesh.native.face_active))
+    out = {"mesh": name, "faces": F, "loadavg_before": common.loadavg()}
+    curve = loop_through(mesh)
+    for order, label in ((2, "biharmonic"), (1, "harmonic")):
+        s = DesignSession(mesh, n=4, order=order, align="curvature-max", strength=1.0)
+        for f in rng.choice(active, NUM_CONSTRAINTS, replace=False):
+            d = rng.normal(size=3)
+            s.set_direction(int(f), d - normals[f] * (d @ normals[f]))
+        s.set_curve("loop", curve, width=0.02, tolerance=0.02)
+        start = int(rng.choice(active))
+        path = cent[start] + np.outer(np.linspace(0, 0.06 * diag, 12), np.cross(normals[start], [0.3, 0.5, 0.8]))
+        s.comb(path, np.gradient(path, axis=0), radius=0.03)
+        with common.Clock() as c:
+            s.solve(details=False)
+        r = {"first_solve_s": c.wall}
+
+        def timed(edit, live=True):
+            with common.Clock() as g:
+                edit()
+                s._solve_inputs()  # the guide computation (cached afterwards)
+            with common.Clock() as t:
+                res = s.solve(details=False, live=live)
+            return g.wall, t.wall, res.live_region
+
+        def series(make_edit, live=True, settle=True):
+            guide, solve, region, total = [], [], [], []
+            for i in range(repeats):
+                gw, sw, reg = timed(make_edit(i), live)
+                guide.append(gw), solve.append(sw), total.append(gw + sw)
+                region.append(reg or 0)
+            res = {"guide_s": statistics.median(guide), "solve_s": statistics.median(solve),
+                   "total_s": statistics.median(total), "region_faces": int(statistics.median(region))}
+            if settle:
+                with common.Clock() as gl:
+                    s.solve(details=False)  # the global solve the background would run afterwards
+                res["global_after_s"] = gl.wall
+            return res
+
+        step = 0.005 * diag * np.array([1.0, 0.7, 0.3]) / np.linalg.norm([1.0, 0.7, 0.3])
+        r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (i + 1) * step, width=0.02,
+                                                                tolerance=0.02)))
+
+        def comb_edit(i):
+            f0 = int(rng.choice(active))
+            pts = cent[f0] + np.outer(np.linspace(0, 0.05 * diag, 12), np.cross(normals[f0], rng.normal(size=3)))
+            return lambda: s.comb(pts, np.gradient(pts, axis=0), radius=0.03)
+        r["comb_stroke"] = series(comb_edit)
+
+        def weight_edit(i):
+            f0 = int(rng.choice(active))
+            w = np.ones(F)
+            w[np.linalg.norm(cent - cent[f0], axis=1) < 0.04 * diag] = 0.0
+            return lambda: s.set_alignment_weight(w)
+        r["weight_change"] = series(weight_edit)
+
+        def rotation_edit(i):
+            f0 = int(rng.choice(active))
+            a = np.zeros(F)
+            a[np.linalg.norm(cent - cent[f0], axis=1) < 0.04 * diag] = np.radians(30)
+            return lambda: s.set_alignment_rotation(a)
+        r["target_change"] = series(rotation_edit, live=False, settle=False)
+
+        # Without the live region: every weight edit refactors the global system.
+        r["weight_change_global"] = series(weight_edit, live=False, settle=False)
+        out[label] = r
+    out["loadavg_after"] = common.loadavg()
+    return out
+
+
+def table(results: list[dict]) -> str:
+    f = common.fmt_ms
+    lines = ["| mesh | faces | energy | curve move (live region) | comb stroke (live region) | weight change "
+             "(live region) | target change (global, no refactor) | weight change, global refactor | global "
+             "solve after a live edit |", "|" + "---|" * 9]
+    for r in results:
+        for label in ("biharmonic", "harmonic"):
+            x = r[label]
+
+            def cell(key):
+                e = x[key]
+                reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
+                return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
+            lines.append(f"| {r['mesh']} | {r['faces']:,} | {label} | {cell('curve_move')} | {cell('comb_stroke')} | "
+                         f"{cell('weight_change')} | {cell('target_change')} | {f(x['weight_change_global']['total_s'])} "
+                         f"| {f(x['curve_move']['global_after_s'])} |")
+    return "\n".join(lines)
+
+
+def targets(results: list[dict]) -> list[dict]:
+    out = []
+    for r in results:
+        x = r["biharmonic"]
+        for key, what in (("curve_move", "moving a curve"), ("comb_stroke", "one comb stroke"),
+                          ("weight_change", "a weight change")):
+            ms = 1000 * x[key]["total_s"]
+            out.append({"what": f"{what}, {r['mesh']} ({r['faces']:,} faces), biharmonic, live", "median_ms": ms,
+                        "target_ms": TARGET_MS, "met": ms < TARGET_MS})
+    return out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="rocker arm only, 3 repeats")
+    parser.add_argument("--meshes", help="comma-separated meshes of tests/data (default: bunny, armadillo)")
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--seed", type=int, default=11)
+    parser.add_argument("--one", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.one:
+        print(json.dumps(measure_one(args.one, args.repeats, args.seed)))
+        return 0
+    meshes = args.meshes.split(",") if args.meshes else (QUICK_MESHES if args.quick else MESHES)
+    repeats = 3 if args.quick else args.repeats
+    results = [common.run_child(Path(__file__), ["--one", m, "--repeats", str(repeats), "--seed", str(args.seed)],
+                                f"guides {m}") for m in meshes]
+    doc = {"meta": common.meta(quick=args.quick, repeats=repeats), "results": results, "targets": targets(results)}
+    md = "\n".join(["# Live guide edits (exact session)", "", table(results), "",
+                    "Medians of " + str(repeats) + " edits. total = guide computation + solve; live edits solve a "
+                    "region around the changed faces exactly with the rest held fixed (docs/guides.md, section 7).",
+                    ""])
+    common.write_results("guides_quick" if args.quick else "guides", doc, md)
+    print(json.dumps(doc, indent=2))
+    print(md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
