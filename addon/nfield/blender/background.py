@@ -35,7 +35,9 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
 
     bl_idname = "nfield.solve_background"
     bl_label = "Solve Field (Background)"
-    bl_options = {"REGISTER", "UNDO"}
+    # No undo step of its own: the user action that started it (a setting, an edit) made the step, and the
+    # field it computes is not part of the undoable design (undo puts fields back from results' history).
+    bl_options = {"REGISTER", "INTERNAL"}
 
     object_name: StringProperty(name="Object", default="", description="Default: the active object")
 
@@ -107,7 +109,10 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
             cancelled = shared["cancel"] or type(outcome[1]).__name__ == "Cancelled"
             status.update(state="cancelled" if cancelled else "failed", message=str(outcome[1]), seconds=seconds)
             if obj is not None:
-                obj.nfield.last_message = "Solve cancelled" if cancelled else f"Solve failed: {outcome[1]}"
+                # the settings that failed go back to the last ones that solved (the field shown is that one)
+                reverted = [] if cancelled else api.revert_settings(obj)
+                obj.nfield.last_message = ("Solve cancelled" if cancelled else f"Solve failed: {outcome[1]}"
+                                           + (f". Reverted: {', '.join(reverted)}" if reverted else ""))
             self.report({"WARNING"} if cancelled else {"ERROR"},
                         "nfield: solve cancelled" if cancelled else f"nfield: solve failed: {outcome[1]}")
             return {"CANCELLED"}
