@@ -85,13 +85,16 @@ def toolbar_layout(context_mode: str = "OBJECT") -> list:
 
     cls = ToolSelectPanelHelper._tool_class_from_space_type("VIEW_3D")
     out = []
+
+    def name(t):
+        # a ToolDef is a namedtuple: ask for its id before treating tuples as groups
+        return None if t is None else getattr(t, "idname", None) or repr(t)
+
     for item in cls._tools[context_mode]:
-        if item is None or not isinstance(item, tuple) and not hasattr(item, "idname"):
-            out.append(None if item is None else repr(item))
-        elif isinstance(item, tuple):
-            out.append([None if t is None else getattr(t, "idname", repr(t)) for t in item])
+        if item is None or hasattr(item, "idname") or not isinstance(item, tuple):
+            out.append(name(item))
         else:
-            out.append(item.idname)
+            out.append([name(t) for t in item])
     return out
 
 
