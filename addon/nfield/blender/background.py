@@ -17,6 +17,7 @@ executed from a script it blocks.
 """
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -28,6 +29,17 @@ from .operator_base import NFieldObjectOperator
 
 #: the last background solve (scripts and tests): state "running" | "finished" | "cancelled" | "failed"
 status: dict = {"state": "idle", "object": "", "work": "", "message": "", "thread": "", "seconds": 0.0}
+
+
+def lower_worker_priority() -> None:
+    """Called first in a worker thread: the solver's threads (it and the threads it starts, which inherit
+    a thread's nice value on Linux) yield the CPU to Blender's UI thread, so the viewport keeps drawing
+    while a factorization or a basis is computed on a machine with few cores."""
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + 10))
+    except (AttributeError, OSError):  # not Linux / not permitted: the worker just runs at normal priority
+        pass
 
 
 class NFIELD_OT_solve_background(bpy.types.Operator):
@@ -64,6 +76,7 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
             return not shared["cancel"]
 
         def work_fn():
+            lower_worker_priority()
             session.progress = progress
             try:
                 shared["outcome"] = ("ok", session.solve())
@@ -183,6 +196,7 @@ class NFIELD_OT_precompute_spectral(NFieldObjectOperator, bpy.types.Operator):
         return not self._cancel
 
     def _work(self):
+        lower_worker_priority()
         try:
             self._outcome = ("ok",) + api.build_from_recipe(self._recipe, self._progress)
         except BaseException as exc:  # noqa: BLE001 - reported in the main thread
