@@ -380,9 +380,18 @@ def panel_measure():
         button_room = inner - 2 * 8 * scale - 20 * scale  # a full-width button: text beside a 20 px icon
         measured = {key: {"text": text, "px": blf.dimensions(0, text)[0], "room": label_room}
                     for key, text in rows.items()}
-        measured["precompute"] = {"text": "Precompute Basis", "px": blf.dimensions(0, "Precompute Basis")[0],
-                                  "room": button_room}
         from nfield.blender import panels
+
+        for name, text in [("precompute", "Precompute Basis")] + [(idname, t) for idname, t, _i in panels.TOOL_BUTTONS]:
+            measured[name] = {"text": text, "px": blf.dimensions(0, text)[0], "room": button_room}
+        # a long message wrapped as the panel wraps it at this width: each line must fit a box label beside
+        # an icon (box padding 2 x 8 px, icon 20 px)
+        chars = int((ui.width - panels.LABEL_MARGIN_PX * scale) / (panels.CHAR_PX * scale))
+        message = ("Solve failed: curvature alignment needs an even symmetry n (principal directions are lines, "
+                   "not vectors). Reverted: Symmetry back to 2 (Line)")
+        for i, line in enumerate(panels.wrap(message, chars)):
+            measured[f"message line {i}"] = {"text": line, "px": blf.dimensions(0, line)[0],
+                                             "room": inner - 2 * 8 * scale - 20 * scale}
 
         samples = {
             "constraint_row": panels.constraint_row_text(st.constraints[0]) if len(st.constraints) else None,

@@ -13,12 +13,15 @@ import bpy
 from . import design, session_cache, state
 
 #: the viewport tools the main panel offers buttons for: (tool id, button text, icon)
-TOOL_BUTTONS = (("nfield.tool_constraint", "Constraint", "EMPTY_SINGLE_ARROW"),
-                ("nfield.tool_singularity", "Singularity", "DOT"))
+TOOL_BUTTONS = (("nfield.tool_constraint", "Constraint Tool", "EMPTY_SINGLE_ARROW"),
+                ("nfield.tool_singularity", "Singularity Tool", "DOT"))
 #: width of one character of the UI font, in pixels at UI scale 1 (wrapping estimate; the sidebar does not
 #: wrap labels itself). Blender's default UI font averages ~6.5 px per character at 11 pt; 7 errs on the
 #: side of shorter lines.
 CHAR_PX = 7.0
+#: what a label line inside a box loses to the region's tab strip, the panel and box margins and an icon
+#: (pixels at UI scale 1; measured on Blender 3.4's screenshot at the default sidebar width)
+LABEL_MARGIN_PX = 80.0
 
 
 def _mesh_object(context):
@@ -34,12 +37,12 @@ def _split(layout):
     return col
 
 
-def wrap_width(context, margin_px: float = 40.0) -> int:
+def wrap_width(context, margin_px: float = LABEL_MARGIN_PX) -> int:
     """How many characters fit on one label line of the sidebar as it is now."""
     region = getattr(context, "region", None)
     width = getattr(region, "width", 0) or 300
     scale = context.preferences.system.ui_scale if context.preferences else 1.0
-    return max(20, int((width - margin_px * scale) / (CHAR_PX * scale)))
+    return max(16, int((width - margin_px * scale) / (CHAR_PX * scale)))
 
 
 def wrapped_labels(layout, text: str, width: int, icon: str = "NONE") -> None:
@@ -92,7 +95,8 @@ class NFIELD_UL_constraints(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index):
         row = layout.row(align=True)
         row.alert = item.stale
-        row.label(text=constraint_row_text(item), icon="ERROR" if item.stale else "EMPTY_SINGLE_ARROW")
+        # no icon on live rows: at the default sidebar width the text needs the room
+        row.label(text=constraint_row_text(item), icon="ERROR" if item.stale else "NONE")
 
 
 class NFIELD_UL_singularities(bpy.types.UIList):
@@ -103,7 +107,7 @@ class NFIELD_UL_singularities(bpy.types.UIList):
         bad = item.stale or design.singularity_numerator(item, n) is None
         row = layout.row(align=True)
         row.alert = bad
-        row.label(text=singularity_row_text(item, n), icon="ERROR" if bad else "DOT")
+        row.label(text=singularity_row_text(item, n), icon="ERROR" if bad else "NONE")
 
 
 class NFIELD_UL_layers(bpy.types.UIList):
@@ -145,7 +149,7 @@ def solver_state_text(obj) -> str:
     st = obj.nfield
     if st.solver_mode == "SPECTRAL":
         basis = "basis ready" if st.spectral_ready else "basis not computed"
-        return f"Spectral, {st.spectral_k} eigenfields, {basis}"
+        return f"Spectral (k = {st.spectral_k}): {basis}"
     return "Exact"
 
 
@@ -205,10 +209,10 @@ class NFIELD_PT_main(_NFieldPanel, bpy.types.Panel):
         tool = context.workspace.tools.from_space_view3d_mode(context.mode, create=False) \
             if context.workspace is not None and context.mode == "OBJECT" else None
         active = getattr(tool, "idname", "")
-        row = layout.row(align=True)
-        row.enabled = context.mode == "OBJECT"
+        col = layout.column(align=True)  # stacked: side by side their texts would be cut at the default width
+        col.enabled = context.mode == "OBJECT"
         for idname, text, icon in TOOL_BUTTONS:
-            row.operator("wm.tool_set_by_id", text=text, icon=icon, depress=(active == idname)).name = idname
+            col.operator("wm.tool_set_by_id", text=text, icon=icon, depress=(active == idname)).name = idname
 
     @staticmethod
     def draw_status(context, layout, obj, width):
@@ -216,8 +220,9 @@ class NFIELD_PT_main(_NFieldPanel, bpy.types.Panel):
         box = layout.box()
         col = box.column(align=True)
         if st.last_solver_state:
-            col.label(text=f"Last solve: {st.last_solve_seconds:.2f} s, {st.last_solver_state}", icon="TIME")
-        col.label(text=solver_state_text(obj), icon="SETTINGS")
+            wrapped_labels(col, f"Solved in {st.last_solve_seconds:.2f} s ({st.last_solver_state})", width,
+                           icon="TIME")
+        wrapped_labels(col, solver_state_text(obj), width, icon="SETTINGS")
         stale = field_stale_text(obj)
         if stale:
             sub = box.column(align=True)
