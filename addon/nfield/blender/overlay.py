@@ -82,6 +82,7 @@ class _State:
     spacing: float = 0.0  # glyph sample spacing of the last build (arrow lengths follow it)
     view: Any = None  # (key, width, height, perspective matrix) of the view the arrows were last sized for
     arrows: dict = field(default_factory=dict)  # face -> (tail, tip) object space, as drawn
+    geo: Any = None  # the overlay geometry of the last full build (arrow resizing reuses it: no mesh read)
 
 
 _states: dict[str, _State] = {}
@@ -212,6 +213,7 @@ def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
 
     # constraint arrows (from the stored design: always the user's latest edit, even mid-drag)
     state.spacing = spacing
+    state.geo = geo
     batches.update(_arrow_batches(obj, state, geo))
 
     # singularity markers
@@ -358,10 +360,10 @@ def _rebuild_pending():
     for name in [a for a in _pending_arrows if a not in names]:
         obj = bpy.data.objects.get(name)
         state = _states.get(name)
-        if obj is not None and state is not None and state.batches is not None:
+        if obj is not None and state is not None and state.geo is not None:
             try:
                 state.batches.pop("constraints", None)
-                state.batches.update(_arrow_batches(obj, state, mesh_read.overlay_geometry(obj)))
+                state.batches.update(_arrow_batches(obj, state, state.geo))
             except Exception as exc:  # noqa: BLE001 - never break the UI
                 print(f"nfield overlay: cannot size the arrows of {name!r}: {exc}")
     _pending_arrows.clear()
