@@ -222,7 +222,8 @@ class NFIELD_PT_main(_NFieldPanel, bpy.types.Panel):
         if st.last_solver_state:
             wrapped_labels(col, f"Solved in {st.last_solve_seconds:.2f} s ({st.last_solver_state})", width,
                            icon="TIME")
-        wrapped_labels(col, solver_state_text(obj), width, icon="SETTINGS")
+        if st.solver_mode == "SPECTRAL" or not st.last_solver_state:  # exact: the line above says it
+            wrapped_labels(col, solver_state_text(obj), width, icon="SETTINGS")
         stale = field_stale_text(obj)
         if stale:
             sub = box.column(align=True)
