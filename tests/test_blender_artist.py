@@ -165,3 +165,28 @@ def test_constraint_arrows_keep_a_screen_space_minimum(scene):
     assert out[0] * s * width / 2 == pytest.approx(48.0)
     assert out[1] == pytest.approx(5.0)
     assert out[2] == pytest.approx(0.5 * 8.0)
+
+
+def test_undo_history_is_bounded(scene, monkeypatch):
+    """The fields remembered for undo are the newest HISTORY_SIZE states and no more bytes than
+    HISTORY_BYTES (the newest result is always kept, whatever its size)."""
+    from types import SimpleNamespace
+
+    nb = _nb(scene)
+    results = blender_module(scene, "results")
+    session_cache = blender_module(scene, "session_cache")
+    obj = import_obj("sphere.obj")
+    nb.solve(obj)
+    entry = session_cache.get_entry_cached(obj)
+    monkeypatch.setattr(results, "HISTORY_BYTES", 3 * 8000)
+    fakes = []
+    for s in range(6):  # six states (strengths), each result holding 8000 bytes of arrays
+        nb.configure(obj, strength=1.0 + s)
+        fakes.append(SimpleNamespace(directions=np.zeros(1000)))
+        results._remember(obj, entry, fakes[-1])
+    kept = [r for _k, r in entry.extra["history"]]
+    assert kept == fakes[-3:]
+    nb.configure(obj, strength=1.0 + 4)
+    assert results.remembered_result(obj, entry) is fakes[4]
+    nb.configure(obj, strength=1.0)
+    assert results.remembered_result(obj, entry) is None  # evicted

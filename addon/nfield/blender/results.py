@@ -15,8 +15,11 @@ from __future__ import annotations
 
 from . import design, overlay
 
-#: results remembered per object for undo/redo (the last few states; each holds a few arrays per face)
+#: results remembered per object for undo/redo: the last few states, and no more than HISTORY_BYTES of
+#: arrays (a result holds a few arrays per face: about 0.2 KB per face, so 8 results of a 1M-face mesh would
+#: take 1.6 GB; the byte bound keeps the newest that fit)
 HISTORY_SIZE = 8
+HISTORY_BYTES = 256 * 2**20
 
 
 def design_key(obj, entry) -> tuple:
@@ -76,7 +79,19 @@ def _remember(obj, entry, result) -> None:
         return
     history = [(k, r) for k, r in entry.extra.get("history", ()) if k != key]
     history.append((key, result))
-    entry.extra["history"] = history[-HISTORY_SIZE:]
+    history = history[-HISTORY_SIZE:]
+    total = 0
+    for i in range(len(history) - 1, -1, -1):  # newest first: keep what fits
+        total += _result_bytes(history[i][1])
+        if total > HISTORY_BYTES and i < len(history) - 1:
+            history = history[i + 1:]
+            break
+    entry.extra["history"] = history
+
+
+def _result_bytes(result) -> int:
+    """Memory held by a result's arrays (its numpy attributes)."""
+    return sum(v.nbytes for v in vars(result).values() if hasattr(v, "nbytes"))
 
 
 def notify_overlay(obj, result=None, arrays=None) -> None:
