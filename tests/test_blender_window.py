@@ -213,6 +213,12 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
             _xdo(env, "mouseup", 1)
             time.sleep(1.0)
             (work / "dragged2").write_text("1")
+            # the main panel is shown as a popover (its draw code runs in the window): close it with Esc
+            shown = _wait_file(work / "panel_shown.json", blender, 120)
+            time.sleep(0.5)
+            _xdo(env, "key", "Escape")
+            time.sleep(0.5)
+            (work / "panel_closed").write_text("1")
             started = _wait_file(work / "spectral_started.json", blender, 60)
             assert started.get("invoke") == ["RUNNING_MODAL"], started
             time.sleep(1.5)
@@ -235,6 +241,9 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
     _check_toolbar(ready["toolbar"])
     _check_reaim(json.loads((work / "reaim.json").read_text()), json.loads((work / "ready2.json").read_text()))
     _check_panel(json.loads((work / "panel.json").read_text()))
+    assert shown.get("popover") in (["FINISHED"], ["RUNNING_MODAL"], ["INTERFACE"]), shown
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(shown["screenshot"], ARTIFACTS / "blender_panel.png")
     _check_undo(undo)
     print("spectral precompute:", json.dumps(spectral, indent=1))
     assert "error" not in spectral, spectral["error"]

@@ -349,7 +349,8 @@ def panel_start():
         bpy.app.timers.register(panel_measure, first_interval=1.5)
     except Exception:  # noqa: BLE001
         out("panel.json", {"error": traceback.format_exc()})
-        bpy.app.timers.register(spectral_start, first_interval=0.5)
+        out("panel_shown.json", {"error": "no sidebar"})
+        bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
     return None
 
 
@@ -399,11 +400,40 @@ def panel_measure():
                                    "direction has no sign). Reverted: Symmetry back to 4", 40),
         }
         out("panel.json", {"tab": STATE.get("tab"), "sidebar_width": ui.width, "ui_scale": scale, "rows": measured, "samples": samples})
+        # Blender 3.4 cannot switch the sidebar's tab from Python: show the panel (with its subpanels) as a
+        # popover instead, so that its draw code runs in this real window (a Traceback would show in the
+        # console, which the test reads) and the screenshot shows it; the test closes it with Esc.
+        with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
+            STATE["popover"] = list(bpy.ops.wm.call_panel(name="NFIELD_PT_main", keep_open=True))
+        bpy.app.timers.register(panel_popover_shot, first_interval=1.5)
+        return None
+    except Exception:  # noqa: BLE001
+        out("panel.json", {"error": traceback.format_exc()})
+    out("panel_shown.json", {"error": "no popover"})
+    bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
+    return None
+
+
+def panel_popover_shot():
+    try:
+        win, area, region = view3d()
         shot = os.path.join(WORKDIR, "panel.png")
         with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
             bpy.ops.screen.screenshot(filepath=shot)
+        out("panel_shown.json", {"popover": STATE.get("popover"), "screenshot": shot})
     except Exception:  # noqa: BLE001
-        out("panel.json", {"error": traceback.format_exc()})
+        out("panel_shown.json", {"error": traceback.format_exc()})
+    bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
+    return None
+
+
+def panel_closed_wait():
+    if not os.path.exists(os.path.join(WORKDIR, "panel_closed")):
+        if time.time() - STATE["t0"] > 500:
+            out("spectral.json", {"error": "timed out waiting for the test to close the panel popover"})
+            bpy.ops.wm.quit_blender()
+            return None
+        return 0.2
     bpy.app.timers.register(spectral_start, first_interval=0.5)
     return None
 
