@@ -20,7 +20,16 @@ Checks:
 * the spectral Precompute button's operator (modal, worker thread): a large basis is cancelled with Esc
   while it computes (settings restored, the status says cancelled, the UI updated the progress meanwhile),
   a small one runs to the end (spectral mode, basis ready, the field solved in the basis);
-* a settings change that needs a new factorization is solved by the background operator's worker thread.
+* a settings change that needs a new factorization is solved by the background operator's worker thread;
+* the toolbar: the two nfield tools in groups of their own after the transform tools and a separator, and
+  every toolbar query Blender makes succeeds for every tool; no ``Traceback`` in the console from start to
+  quit;
+* pressing the constraint's arrowhead (over a neighbouring face) and dragging re-aims that constraint;
+* at the sidebar's default width the split-layout labels, the full-width buttons and the wrapped message
+  lines fit (measured with ``blf`` in the UI font, not read from pixels); the panel is drawn as a popover
+  and kept as tests/artifacts/blender_panel.png;
+* an undo to a state whose solve needs a spectral basis hands that solve to the worker: the UI timer keeps
+  ticking (see _check_undo for the bound).
 Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing.
 """
 from __future__ import annotations
