@@ -190,3 +190,20 @@ def test_undo_history_is_bounded(scene, monkeypatch):
     assert results.remembered_result(obj, entry) is fakes[4]
     nb.configure(obj, strength=1.0)
     assert results.remembered_result(obj, entry) is None  # evicted
+
+
+def test_guides_read_from_mesh_data_are_never_restored_from_memory(scene):
+    """Feature alignment reads marked edges, which the key of a remembered field cannot see: with it on, no
+    field is remembered (undo re-solves in the background instead of showing a field of other edges)."""
+    nb = _nb(scene)
+    results = blender_module(scene, "results")
+    session_cache = blender_module(scene, "session_cache")
+    obj = import_obj("sphere.obj")
+    nb.solve(obj)
+    entry = session_cache.get_entry_cached(obj)
+    assert results.remembered_result(obj, entry) is entry.result
+    obj.nfield.live_update = False
+    obj.nfield_guides.use_features = True
+    assert results.remembered_result(obj, entry) is None
+    with pytest.raises(results.Unkeyable):
+        results.design_key(obj, entry)

@@ -14,6 +14,7 @@ without solving (``handlers.on_undo_redo``).
 from __future__ import annotations
 
 from . import design, overlay
+from .guides import COMB_WEIGHT
 
 #: results remembered per object for undo/redo: the last few states, and no more than HISTORY_BYTES of
 #: arrays (a result holds a few arrays per face: about 0.2 KB per face, so 8 results of a 1M-face mesh would
@@ -22,13 +23,33 @@ HISTORY_SIZE = 8
 HISTORY_BYTES = 256 * 2**20
 
 
+class Unkeyable(Exception):
+    """The field depends on data the key cannot see cheaply (guides read from edges, attributes, curves)."""
+
+
 def design_key(obj, entry) -> tuple:
-    """What a field depends on, as a hashable value: the mesh signature, the settings, the design."""
+    """What a field depends on, as a hashable value: the mesh signature, the settings, the design, the guide
+    settings. Unkeyable when guides read data outside the settings (marked edges, face attributes, curve
+    objects, a comb field): undo then always re-solves (in the background)."""
     st = obj.nfield
     dirs, sings = design.desired_design(obj)
     settings = tuple(getattr(st, k) for k in design.SETTING_KEYS if k != "live_update")
     return (entry.signature, settings, tuple(sorted(dirs.items())), tuple(sorted(sings.items())),
-            design.design_state(obj), tuple(tuple(it.face for it in st.region_faces)) if st.region_active else ())
+            design.design_state(obj), tuple(tuple(it.face for it in st.region_faces)) if st.region_active else (),
+            _guide_key(obj))
+
+
+def _guide_key(obj) -> tuple:
+    g = getattr(obj, "nfield_guides", None)
+    if g is None:
+        return ()
+    if (getattr(g, "use_features", False) or len(getattr(g, "curves", ())) or getattr(g, "weight_attribute", "")
+            or getattr(g, "rotation_attribute", "") or getattr(g, "cut_source", "NONE") != "NONE"
+            or obj.data.attributes.get(COMB_WEIGHT) is not None):
+        raise Unkeyable(obj.name)
+    return tuple((p.identifier, getattr(g, p.identifier)) for p in g.bl_rna.properties
+                 if p.type in {"BOOLEAN", "INT", "FLOAT", "STRING", "ENUM"} and not getattr(p, "is_array", False)
+                 and p.identifier != "rna_type")
 
 
 def remembered_result(obj, entry):
