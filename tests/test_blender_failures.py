@@ -145,8 +145,10 @@ def test_failed_solve_with_new_settings_restores_them(scene):
     obj, ring = _ring_design(scene)
     nb.add_constraint(obj, ring[1]["face"], ring[1]["vector"], kind="vector")  # now contradictory
     before = _user_state(obj)
+    # (n stays 4: the pinned index 1/4 is no multiple of 1/2, so at n = 2 it would be left out of the solve and
+    # nothing would contradict)
     with pytest.raises(ValueError, match="contradictory constraints"):
-        nb.solve(obj, n=2, order=1, strength=3.0)
+        nb.solve(obj, order=1, strength=3.0)
     assert _user_state(obj) == before and (obj.nfield.n, obj.nfield.order) == (4, 2)
     assert "contradictory" in obj.nfield.last_message
 

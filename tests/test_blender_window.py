@@ -20,7 +20,16 @@ Checks:
 * the spectral Precompute button's operator (modal, worker thread): a large basis is cancelled with Esc
   while it computes (settings restored, the status says cancelled, the UI updated the progress meanwhile),
   a small one runs to the end (spectral mode, basis ready, the field solved in the basis);
-* a settings change that needs a new factorization is solved by the background operator's worker thread.
+* a settings change that needs a new factorization is solved by the background operator's worker thread;
+* the toolbar: the two nfield tools in groups of their own after the transform tools and a separator, and
+  every toolbar query Blender makes succeeds for every tool; no ``Traceback`` in the console from start to
+  quit;
+* pressing the constraint's arrowhead (over a neighbouring face) and dragging re-aims that constraint;
+* at the sidebar's default width the split-layout labels, the full-width buttons and the wrapped message
+  lines fit (measured with ``blf`` in the UI font, not read from pixels); the panel is drawn as a popover
+  and kept as tests/artifacts/blender_panel.png;
+* an undo to a state whose solve needs a spectral basis hands that solve to the worker: the UI timer keeps
+  ticking (see _check_undo for the bound).
 Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing.
 """
 from __future__ import annotations
@@ -78,6 +87,76 @@ def _xdo(env, *args):
     subprocess.run(["xdotool", *map(str, args)], env=env, check=True, timeout=30)
 
 
+def _check_toolbar(toolbar):
+    """The nfield tools sit in groups of their own at the top level, after the transform block, and no
+    toolbar query raises."""
+    layout = toolbar["layout"]
+    print("toolbar:", json.dumps(layout))
+    assert toolbar["query_errors"] == [], toolbar["query_errors"]
+    ours = {"nfield.tool_constraint", "nfield.tool_singularity"}
+    groups = [item for item in layout if isinstance(item, list)]
+    assert all(None not in g for g in groups), "a separator inside a toolbar group"
+    holding = [g for g in groups if ours & set(g)]
+    assert sorted(t for g in holding for t in g) == sorted(ours), holding  # no builtin tool shares their group
+    flat = [item if not isinstance(item, list) else item[0] for item in layout]
+    first = min(flat.index(g[0]) for g in holding)
+    assert flat[first - 1] is None, "no separator before the nfield tools"
+    assert "builtin.transform" in flat[:first], "the nfield tools come after the transform tools"
+
+
+def _check_reaim(reaim, ready2):
+    """Pressing the arrowhead re-aimed the constraint (still one, on the same face) instead of adding one on
+    the face under the arrowhead; the new direction points at the drag target (same tolerance argument as
+    the first drag: a 90 px drag, one pixel of rounding is 0.6 deg)."""
+    assert "error" not in reaim, reaim.get("error")
+    print("re-aim:", json.dumps(reaim), "arrow length on screen:", ready2["arrow_px"])
+    assert ready2["arrow_px"] >= 40.0, ready2  # the screen-space minimum (48 px, less rounding/perspective)
+    live = [c for c in reaim["constraints"] if not c["stale"]]
+    assert [c["face"] for c in live] == [reaim["face"]], reaim["constraints"]
+    assert reaim["press_face"] == reaim["face"], reaim
+    # the press was over another face (the head reaches past the constrained face: arrows are >= 48 px, the
+    # faces of this sphere ~25 px): before, that press made a new constraint there
+    assert reaim["press_hit_face"] != reaim["face"], reaim
+    want = (reaim["target"][0] - reaim["centroid_px"][0], reaim["target"][1] - reaim["centroid_px"][1])
+    sx, sy = reaim["screen_direction"]
+    angle = math.degrees(math.atan2(want[0] * sy - want[1] * sx, want[0] * sx + want[1] * sy))
+    assert abs(angle) < ANGLE_TOL_DEG, f"re-aimed direction is {angle:.2f} deg off the drag target"
+
+
+def _check_panel(panel):
+    """At the sidebar's default width every split-layout label of the main panel fits its column (so Blender
+    draws it whole, without '…'), and so do the full-width buttons (Precompute, the two tools) and each line
+    of a long message as the panel wraps it."""
+    assert "error" not in panel, panel.get("error")
+    print("sidebar:", json.dumps(panel, indent=1))
+    for key, row in panel["rows"].items():
+        assert row["px"] <= row["room"], f"{key}: '{row['text']}' needs {row['px']:.0f} px, has {row['room']:.0f}"
+    lines = [k for k in panel["rows"] if k.startswith("message line")]
+    assert len(lines) >= 3, "the long message was not wrapped over several lines"
+
+
+def _check_undo(undo):
+    """An undo to a state whose solve is slow (spectral basis not computed) hands the solve to the worker
+    thread: the UI keeps running its 50 ms timer.
+
+    Bound: the issue's 0.5 s, unless this Blender's own idle gap, measured in the same run just before
+    (the same timer with nothing running), is already larger: on a loaded 2-core machine with software GL
+    an idle Blender ticks only every one to three seconds. Then the gap may be up to twice the idle one.
+    Either way the check discriminates: the worker is still computing the basis at the end of the 10 s
+    window (asserted below), so a solve in the UI thread would leave one gap of at least 10 s."""
+    assert "error" not in undo, undo.get("error")
+    print("undo:", json.dumps({k: v for k, v in undo.items() if k != "ticks"}, indent=1))
+    assert undo["undo"] == ["FINISHED"], undo
+    assert undo["after_undo"] == {"mode": "SPECTRAL", "k": 400, "constraints": 0}, undo["after_undo"]
+    assert undo["undo_seconds"] < 0.5, undo["undo_seconds"]
+    bound = max(0.5, 2.0 * undo["idle_max_gap"])
+    assert bound < 10.0, f"this Blender is too slow to tell (idle gap {undo['idle_max_gap']:.2f} s)"
+    assert undo["max_gap"] is not None and undo["max_gap"] < bound, (undo["max_gap"], undo["idle_max_gap"])
+    # the solve was handed to the worker (or is about to be), and the panel says the field is out of date
+    assert undo["busy"] or undo["status"]["state"] == "running", undo["status"]
+    assert "after undo" in undo["stale_text"], undo["stale_text"]
+
+
 def test_constraint_drag_in_real_window(tmp_path, addon_zip):
     reason = _missing()
     if reason:
@@ -128,12 +207,34 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
         (work / "dragged").write_text("1")
         result = _wait_file(work / "result.json", blender, 120)
         if "error" not in result:
+            # second drag: press on the arrowhead of the constraint just made, drag at a right angle
+            ready2 = _wait_file(work / "ready2.json", blender, 60)
+            (px, py), (tx, ty) = ready2["press_window"], ready2["target_window"]
+            _xdo(env, "mousemove", "--window", win, px, py)
+            time.sleep(0.5)
+            _xdo(env, "mousedown", 1)
+            _wait_file(work / "pressed2.json", blender, 60)
+            for i in range(1, steps + 1):
+                _xdo(env, "mousemove", "--window", win, round(px + (tx - px) * i / steps),
+                     round(py + (ty - py) * i / steps))
+                time.sleep(0.15)
+            time.sleep(0.8)
+            _xdo(env, "mouseup", 1)
+            time.sleep(1.0)
+            (work / "dragged2").write_text("1")
+            # the main panel is shown as a popover (its draw code runs in the window): close it with Esc
+            shown = _wait_file(work / "panel_shown.json", blender, 120)
+            time.sleep(0.5)
+            _xdo(env, "key", "Escape")
+            time.sleep(0.5)
+            (work / "panel_closed").write_text("1")
             started = _wait_file(work / "spectral_started.json", blender, 60)
             assert started.get("invoke") == ["RUNNING_MODAL"], started
             time.sleep(1.5)
             _xdo(env, "mousemove", "--window", win, 400, 400)
             _xdo(env, "key", "Escape")
             spectral = _wait_file(work / "spectral.json", blender, 400)
+            undo = _wait_file(work / "undo.json", blender, 300)
         blender.wait(timeout=60)
     finally:
         if blender is not None and blender.poll() is None:
@@ -141,8 +242,18 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
         xvfb.terminate()
         xvfb.wait(timeout=10)
         log.close()
-    print((tmp_path / "blender.log").read_text()[-3000:])
+    console = (tmp_path / "blender.log").read_text()
+    print(console[-3000:])
     assert "error" not in result, result.get("error")
+    # Nothing raised anywhere from start to quit (a toolbar query, a draw callback, a handler, a timer).
+    assert "Traceback" not in console, console[console.index("Traceback") - 200:][:3000]
+    _check_toolbar(ready["toolbar"])
+    _check_reaim(json.loads((work / "reaim.json").read_text()), json.loads((work / "ready2.json").read_text()))
+    _check_panel(json.loads((work / "panel.json").read_text()))
+    assert shown.get("popover") in (["FINISHED"], ["RUNNING_MODAL"], ["INTERFACE"]), shown
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(shown["screenshot"], ARTIFACTS / "blender_panel.png")
+    _check_undo(undo)
     print("spectral precompute:", json.dumps(spectral, indent=1))
     assert "error" not in spectral, spectral["error"]
     cancel, finish = spectral["cancel"], spectral["finish"]

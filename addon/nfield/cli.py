@@ -130,6 +130,9 @@ def _symmetry_spec(s: str) -> tuple:
 
 def _out_path(s: str) -> str:
     ext = os.path.splitext(s)[1].lower()
+    if os.path.isdir(s) or s.endswith(("/", os.sep)):
+        raise argparse.ArgumentTypeError(
+            f"'{s}' is a directory: --out takes a file name ending in .npy (numpy) or .csv (text)")
     if ext not in OUT_EXTENSIONS:
         raise argparse.ArgumentTypeError(
             f"unsupported output extension '{ext or s}' (use .npy for numpy or .csv for text)")
@@ -311,6 +314,23 @@ def _format_index(x: float, n: int) -> str:
     return f"{'+' if f > 0 else '-'}{abs(f)}"
 
 
+def _load_on_mesh(load_constraints, path, kind: str, mesh) -> list:
+    """The constraints of a JSON file, each face / vertex checked against the mesh: an index out of range
+    names the file and the entry (the solver alone could only name the index)."""
+    if not path:
+        return []
+    entries = load_constraints(path, kind=kind)
+    for i, c in enumerate(entries):
+        if kind == "singularity":
+            if not 0 <= c.vertex < mesh.num_vertices:
+                raise CLIError(f"{path}: entry {i}: vertex {c.vertex} is out of range: the mesh has "
+                               f"{mesh.num_vertices} vertices (valid indices 0..{mesh.num_vertices - 1})")
+        elif not 0 <= c.face < mesh.num_faces:
+            raise CLIError(f"{path}: entry {i}: face {c.face} is out of range: the mesh has {mesh.num_faces} "
+                           f"faces (valid indices 0..{mesh.num_faces - 1})")
+    return entries
+
+
 def cmd_solve(args) -> int:
     from .core import load_constraints, solve
 
@@ -319,9 +339,9 @@ def cmd_solve(args) -> int:
         if not os.path.isdir(parent):
             raise CLIError(f"cannot write {args.out}: directory {parent} does not exist")
     mesh = _load_mesh(args.mesh)
-    dirs = load_constraints(args.constraints, kind="direction") if args.constraints else []
-    vecs = load_constraints(args.vector_constraints, kind="vector") if args.vector_constraints else []
-    sings = load_constraints(args.singularities, kind="singularity") if args.singularities else []
+    dirs = _load_on_mesh(load_constraints, args.constraints, "direction", mesh)
+    vecs = _load_on_mesh(load_constraints, args.vector_constraints, "vector", mesh)
+    sings = _load_on_mesh(load_constraints, args.singularities, "singularity", mesh)
     guides = _guide_arguments(args, mesh)
     result = solve(mesh, n=args.n, order=args.order, align=args.align, strength=args.strength,
                    constraints=dirs, vector_constraints=vecs, singularities=sings, weights=args.weights, **guides)

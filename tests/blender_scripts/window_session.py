@@ -105,6 +105,8 @@ def setup():
             bpy.context.view_layer.objects.active = obj
             bpy.ops.view3d.view_selected()
             print("nfield-window: framed", flush=True)
+            STATE["toolbar"] = toolbar_check()
+            # what the sidebar's "Constraint" button runs
             bpy.ops.wm.tool_set_by_id(name="nfield.tool_constraint")
             print("nfield-window: tool active", flush=True)
         space.region_3d.view_distance *= 0.55  # the sphere fills most of the view
@@ -113,6 +115,24 @@ def setup():
     except Exception:  # noqa: BLE001
         fail(traceback.format_exc())
     return None
+
+
+def toolbar_check():
+    """The object-mode toolbar as nested id lists, and every toolbar query Blender makes for each tool."""
+    from bl_ui.space_toolsystem_common import ToolSelectPanelHelper
+    from nfield.blender import tools
+
+    cls = ToolSelectPanelHelper._tool_class_from_space_type("VIEW_3D")
+    layout = tools.toolbar_layout("OBJECT")
+    ids = [t for item in layout for t in (item if isinstance(item, list) else [item]) if isinstance(t, str)]
+    errors = []
+    for idname in ids:
+        for query in (cls._tool_get_group_by_id, cls._tool_get_by_id, cls._tool_get_by_id_active_with_group):
+            try:
+                query(bpy.context, idname)
+            except Exception:  # noqa: BLE001
+                errors.append(f"{query.__name__}({idname}): {traceback.format_exc(limit=2)}")
+    return {"layout": layout, "query_errors": errors}
 
 
 def pick_face():
@@ -150,6 +170,7 @@ def pick_face():
             "target_window": [region.x + target[0], win.height - 1 - (region.y + target[1])],
             "window_size": [win.width, win.height],
             "active_tool": tool.idname if tool else None,
+            "toolbar": STATE["toolbar"],
         })
         bpy.app.timers.register(wait_for_drag, first_interval=0.2)
     except Exception:  # noqa: BLE001
@@ -229,6 +250,190 @@ def report():
         out("result.json", {"error": traceback.format_exc()})
         bpy.ops.wm.quit_blender()
         return None
+    bpy.app.timers.register(reaim_ready, first_interval=0.5)
+    return None
+
+
+# ------------------------------------------------------------------ re-aim by pressing the arrowhead
+def reaim_ready():
+    """The test presses on the constraint's arrowhead (as the overlay drew it) and drags sideways: the tool
+    must re-aim that constraint, not add one on the face under the arrowhead."""
+    from nfield.blender import overlay, tool_common
+
+    try:
+        win, area, region = view3d()
+        rv3d = area.spaces.active.region_3d
+        obj = bpy.data.objects[STATE["obj"]]
+        arrows = overlay.constraint_arrows(obj)
+        face, (tail, tip) = next(iter(arrows.items()))
+        mw = obj.matrix_world
+        a = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ Vector(tuple(tail)))
+        b = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ Vector(tuple(tip)))
+        along = (b - a).normalized()
+        press = b - along * 4.0  # on the shaft just inside the head
+        side = Vector((-along.y, along.x))
+        target = a + side * 90.0  # aim at a right angle to the current direction
+        press = (round(press.x), round(press.y))
+        target = (round(target.x), round(target.y))
+        STATE.update(reaim_face=face, reaim_press=press, reaim_target=target, reaim_tail=[a.x, a.y],
+                     reaim_presses=tool_common.last_press.get("mouse"))
+        tool_common.last_press.clear()
+        out("ready2.json", {
+            "face": face, "arrow_px": (b - a).length,
+            "press_window": [region.x + press[0], win.height - 1 - (region.y + press[1])],
+            "target_window": [region.x + target[0], win.height - 1 - (region.y + target[1])],
+        })
+        bpy.app.timers.register(reaim_wait, first_interval=0.2)
+    except Exception:  # noqa: BLE001
+        out("reaim.json", {"error": traceback.format_exc()})
+        bpy.app.timers.register(panel_start, first_interval=0.5)
+    return None
+
+
+def reaim_wait():
+    from nfield.blender import tool_common
+
+    if tool_common.last_press and not STATE.get("press2_seen"):
+        STATE["press2_seen"] = True
+        out("pressed2.json", {"mouse": list(tool_common.last_press.get("mouse", []))})
+    if not os.path.exists(os.path.join(WORKDIR, "dragged2")):
+        if time.time() - STATE["t0"] > 400:
+            out("reaim.json", {"error": "timed out waiting for the test's second drag"})
+            bpy.app.timers.register(panel_start, first_interval=0.5)
+            return None
+        return 0.2
+    bpy.app.timers.register(reaim_report, first_interval=1.0)
+    return None
+
+
+def reaim_report():
+    from nfield.blender import tool_common
+
+    try:
+        win, area, region = view3d()
+        rv3d = area.spaces.active.region_3d
+        obj = bpy.data.objects[STATE["obj"]]
+        st = obj.nfield
+        cons = [{"face": c.face, "direction": list(c.direction), "stale": c.stale} for c in st.constraints]
+        res = {"face": STATE["reaim_face"], "constraints": cons, "press": tool_common.last_press.get("mouse"),
+               "press_hit_face": tool_common.last_press.get("hit_face"),
+               "press_face": tool_common.last_press.get("face"), "target": STATE["reaim_target"]}
+        item = next((c for c in st.constraints if c.face == STATE["reaim_face"]), None)
+        if item is not None:
+            mw = obj.matrix_world
+            c = obj.data.polygons[item.face].center
+            eps = 0.02 * obj.dimensions.length
+            a = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ c)
+            b = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ (c + Vector(item.direction).normalized() * eps))
+            res["screen_direction"] = [b.x - a.x, b.y - a.y]
+            res["centroid_px"] = [a.x, a.y]
+        out("reaim.json", res)
+    except Exception:  # noqa: BLE001
+        out("reaim.json", {"error": traceback.format_exc()})
+    bpy.app.timers.register(panel_start, first_interval=0.5)
+    return None
+
+
+# ------------------------------------------------------------------ the sidebar at its default width
+def panel_start():
+    try:
+        win, area, region = view3d()
+        area.spaces.active.show_region_ui = True  # the sidebar, at the width Blender gives it by default
+        ui = next(r for r in area.regions if r.type == "UI")
+        try:  # Blender 4.1+: show the nfield tab for the screenshot (3.4 has no API for it)
+            ui.active_panel_category = "nfield"
+            STATE["tab"] = "nfield"
+        except (AttributeError, TypeError, ValueError):
+            STATE["tab"] = "not settable"
+        area.tag_redraw()
+        bpy.app.timers.register(panel_measure, first_interval=1.5)
+    except Exception:  # noqa: BLE001
+        out("panel.json", {"error": traceback.format_exc()})
+        out("panel_shown.json", {"error": "no sidebar"})
+        bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
+    return None
+
+
+def panel_measure():
+    """The main panel's row labels measured in the UI font against the room Blender's split layout gives
+    them at the sidebar's width (Blender cuts a label that does not fit with '…')."""
+    import blf
+
+    try:
+        win, area, region = view3d()
+        ui = next(r for r in area.regions if r.type == "UI")
+        obj = bpy.data.objects[STATE["obj"]]
+        st = obj.nfield
+        prefs = bpy.context.preferences
+        scale = prefs.system.ui_scale * prefs.system.pixel_size
+        style = prefs.ui_styles[0].widget
+        try:
+            blf.size(0, style.points * scale, 72)  # Blender 3.x signature
+        except TypeError:
+            blf.size(0, style.points * scale)
+        props = st.bl_rna.properties
+        rows = {key: props[key].name for key in ("symmetry", "energy", "alignment", "solver_mode", "spectral_k",
+                                                  "live_update")}
+        # the panel's inner width: the region less the panel margins and the item padding (Blender's
+        # UI_PANEL_MARGIN_X 10 px and the column's 2 x 8 px text padding, at the UI scale)
+        inner = ui.width - 2 * (10 + 8) * scale
+        label_room = 0.4 * inner  # use_property_split: the label column is 40 % of the row
+        button_room = inner - 2 * 8 * scale - 20 * scale  # a full-width button: text beside a 20 px icon
+        measured = {key: {"text": text, "px": blf.dimensions(0, text)[0], "room": label_room}
+                    for key, text in rows.items()}
+        from nfield.blender import panels
+
+        for name, text in [("precompute", "Precompute Basis")] + [(idname, t) for idname, t, _i in panels.TOOL_BUTTONS]:
+            measured[name] = {"text": text, "px": blf.dimensions(0, text)[0], "room": button_room}
+        # a long message wrapped as the panel wraps it at this width: each line must fit a box label beside
+        # an icon (box padding 2 x 8 px, icon 20 px)
+        chars = int((ui.width - panels.LABEL_MARGIN_PX * scale) / (panels.CHAR_PX * scale))
+        message = ("Solve failed: curvature alignment needs an even symmetry n (principal directions are lines, "
+                   "not vectors). Reverted: Symmetry back to 2 (Line)")
+        for i, line in enumerate(panels.wrap(message, chars)):
+            measured[f"message line {i}"] = {"text": line, "px": blf.dimensions(0, line)[0],
+                                             "room": inner - 2 * 8 * scale - 20 * scale}
+
+        samples = {
+            "constraint_row": panels.constraint_row_text(st.constraints[0]) if len(st.constraints) else None,
+            "wrapped": panels.wrap("Solve failed: curvature alignment needs n = 2 or n = 4 (a curvature "
+                                   "direction has no sign). Reverted: Symmetry back to 4", 40),
+        }
+        out("panel.json", {"tab": STATE.get("tab"), "sidebar_width": ui.width, "ui_scale": scale, "rows": measured, "samples": samples})
+        # Blender 3.4 cannot switch the sidebar's tab from Python: show the panel (with its subpanels) as a
+        # popover instead, so that its draw code runs in this real window (a Traceback would show in the
+        # console, which the test reads) and the screenshot shows it; the test closes it with Esc.
+        with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
+            STATE["popover"] = list(bpy.ops.wm.call_panel(name="NFIELD_PT_main", keep_open=True))
+        bpy.app.timers.register(panel_popover_shot, first_interval=1.5)
+        return None
+    except Exception:  # noqa: BLE001
+        out("panel.json", {"error": traceback.format_exc()})
+    out("panel_shown.json", {"error": "no popover"})
+    bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
+    return None
+
+
+def panel_popover_shot():
+    try:
+        win, area, region = view3d()
+        shot = os.path.join(WORKDIR, "panel.png")
+        with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
+            bpy.ops.screen.screenshot(filepath=shot)
+        out("panel_shown.json", {"popover": STATE.get("popover"), "screenshot": shot})
+    except Exception:  # noqa: BLE001
+        out("panel_shown.json", {"error": traceback.format_exc()})
+    bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
+    return None
+
+
+def panel_closed_wait():
+    if not os.path.exists(os.path.join(WORKDIR, "panel_closed")):
+        if time.time() - STATE["t0"] > 500:
+            out("spectral.json", {"error": "timed out waiting for the test to close the panel popover"})
+            bpy.ops.wm.quit_blender()
+            return None
+        return 0.2
     bpy.app.timers.register(spectral_start, first_interval=0.5)
     return None
 
@@ -328,6 +533,101 @@ def background_wait():
     except Exception:  # noqa: BLE001
         spectral_fail(traceback.format_exc())
         return None
+    bpy.app.timers.register(undo_idle, first_interval=0.2)
+    return None
+
+
+# ------------------------------------------------------------------ undo while a solve is pending
+UNDO = {"ticks": []}
+#: how long the UI timer is watched after the undo; the basis the undo needs takes longer than this (the
+#: test checks that the worker is still busy at the end), so a solve in the UI thread would leave a gap of
+#: the whole window
+UNDO_WINDOW_S = 10.0
+
+
+def undo_fail(text):
+    out("undo.json", {"error": text})
+    bpy.ops.wm.quit_blender()
+
+
+def _ed(op, **kw):
+    win, area, region = view3d()
+    with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
+        return list(op(**kw))
+
+
+def undo_idle():
+    """Control: the same 50 ms timer while nothing runs (how often this Blender ticks at all on this machine)."""
+    try:
+        now = time.time()
+        UNDO.setdefault("idle", []).append(now)
+        if now - UNDO["idle"][0] < 5.0:
+            return 0.05
+        idle = UNDO.pop("idle")
+        UNDO["idle_ticks"] = len(idle)
+        UNDO["idle_max_gap"] = max(b - a for a, b in zip(idle, idle[1:]))
+        bpy.app.timers.register(undo_start, first_interval=0.05)
+    except Exception:  # noqa: BLE001
+        undo_fail(traceback.format_exc())
+    return None
+
+
+def undo_start():
+    """Undo back to a state whose field is not remembered and whose solve is slow (spectral mode with a
+    basis of 400 eigenfields that is neither in memory nor on disk: tens of seconds). The undo handler must
+    hand that solve to the worker thread: a UI timer keeps ticking."""
+    import nfield.blender as nb
+
+    try:
+        obj = bpy.data.objects[STATE["obj"]]
+        nb.configure(obj, mode="spectral", k=400)  # stored without solving (no update callbacks)
+        _ed(bpy.ops.ed.undo_push, message="spectral k=400")
+        nb.add_constraint(obj, 3, (1.0, 0.0, 0.0))
+        _ed(bpy.ops.ed.undo_push, message="a constraint")
+        UNDO["t0"] = time.time()
+        UNDO["ticks"].append(0.0)
+        UNDO["undo"] = _ed(bpy.ops.ed.undo)
+        UNDO["undo_seconds"] = time.time() - UNDO["t0"]
+        obj = bpy.data.objects[STATE["obj"]]
+        UNDO["after_undo"] = {"mode": obj.nfield.solver_mode, "k": obj.nfield.spectral_k,
+                              "constraints": len(obj.nfield.constraints)}
+        bpy.app.timers.register(undo_tick, first_interval=0.05)
+    except Exception:  # noqa: BLE001
+        undo_fail(traceback.format_exc())
+    return None
+
+
+def undo_tick():
+    from nfield.blender import background, jobs, panels
+
+    try:
+        now = time.time() - UNDO["t0"]
+        UNDO["ticks"].append(round(now, 3))
+        obj = bpy.data.objects[STATE["obj"]]
+        if now < UNDO_WINDOW_S:
+            return 0.05
+        UNDO["busy"] = jobs.busy(obj)
+        UNDO["status"] = dict(background.status)
+        UNDO["stale_text"] = panels.field_stale_text(obj)
+        shared = jobs._running.get(obj.name)
+        if shared is not None:
+            shared["cancel"] = True  # the worker stops at its next checkpoint
+        bpy.app.timers.register(undo_end, first_interval=0.2)
+    except Exception:  # noqa: BLE001
+        undo_fail(traceback.format_exc())
+    return None
+
+
+def undo_end():
+    from nfield.blender import jobs
+
+    obj = bpy.data.objects[STATE["obj"]]
+    if jobs.busy(obj) and time.time() - UNDO["t0"] < 200:
+        return 0.2
+    ticks = UNDO["ticks"]
+    UNDO["max_gap"] = max(b - a for a, b in zip(ticks, ticks[1:])) if len(ticks) > 1 else None
+    UNDO.pop("t0", None)
+    out("undo.json", UNDO)
     bpy.ops.wm.quit_blender()
     return None
 

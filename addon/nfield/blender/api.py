@@ -57,6 +57,8 @@ def sync(obj):
     """Read the mesh and remap the stored design if the mesh changed. Returns (MeshArrays, notes)."""
     check_mesh_object(obj)
     arrays = mesh_read.mesh_arrays(obj)
+    if any(s.denominator == 0 for s in obj.nfield.singularities):
+        design.pin_denominators(obj)
     notes = design.remap_design(obj, arrays)
     if notes:
         obj.nfield.last_message = "; ".join(notes)
@@ -710,6 +712,30 @@ def adopt_result(obj, entry, arrays, result) -> None:
     store_result(obj, entry, result)
     if obj.nfield.write_attributes:
         attributes.write(obj, arrays, result, obj.nfield.n)
+
+
+def revert_settings(obj) -> list[str]:
+    """Put back the settings of the object's last successful solve (a new setting was refused). Returns what
+    was changed, as "Alignment back to None" texts (empty if nothing differed or nothing was solved yet)."""
+    entry = session_cache.get_entry_cached(obj)
+    good = None if entry is None else entry.extra.get("good_settings")
+    if good is None:
+        return []
+    st = obj.nfield
+    reverted = []
+    with design.suspended_updates():
+        for key, value in zip(design.SETTING_KEYS, good):
+            if key != "live_update" and getattr(st, key) != value:
+                reverted.append(f"{st.bl_rna.properties[key].name} back to {_shown(st, key, value)}")
+                setattr(st, key, value)
+    return reverted
+
+
+def _shown(st, key: str, value) -> str:
+    prop = st.bl_rna.properties[key]
+    if prop.type == "ENUM":
+        return next((it.name for it in prop.enum_items if it.identifier == value), str(value))
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def background_recipe(obj):

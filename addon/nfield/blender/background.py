@@ -17,6 +17,7 @@ executed from a script it blocks.
 """
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -30,12 +31,25 @@ from .operator_base import NFieldObjectOperator
 status: dict = {"state": "idle", "object": "", "work": "", "message": "", "thread": "", "seconds": 0.0}
 
 
+def lower_worker_priority() -> None:
+    """Called first in a worker thread: the solver's threads (it and the threads it starts, which inherit
+    a thread's nice value on Linux) yield the CPU to Blender's UI thread, so the viewport keeps drawing
+    while a factorization or a basis is computed on a machine with few cores."""
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + 10))
+    except (AttributeError, OSError):  # not Linux / not permitted: the worker just runs at normal priority
+        pass
+
+
 class NFIELD_OT_solve_background(bpy.types.Operator):
     """Solve the field in a worker thread (factorization or basis first); Esc cancels"""
 
     bl_idname = "nfield.solve_background"
     bl_label = "Solve Field (Background)"
-    bl_options = {"REGISTER", "UNDO"}
+    # No undo step of its own: the user action that started it (a setting, an edit) made the step, and the
+    # field it computes is not part of the undoable design (undo puts fields back from results' history).
+    bl_options = {"REGISTER", "INTERNAL"}
 
     object_name: StringProperty(name="Object", default="", description="Default: the active object")
 
@@ -62,6 +76,7 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
             return not shared["cancel"]
 
         def work_fn():
+            lower_worker_priority()
             session.progress = progress
             try:
                 shared["outcome"] = ("ok", session.solve())
@@ -107,7 +122,10 @@ class NFIELD_OT_solve_background(bpy.types.Operator):
             cancelled = shared["cancel"] or type(outcome[1]).__name__ == "Cancelled"
             status.update(state="cancelled" if cancelled else "failed", message=str(outcome[1]), seconds=seconds)
             if obj is not None:
-                obj.nfield.last_message = "Solve cancelled" if cancelled else f"Solve failed: {outcome[1]}"
+                # the settings that failed go back to the last ones that solved (the field shown is that one)
+                reverted = [] if cancelled else api.revert_settings(obj)
+                obj.nfield.last_message = ("Solve cancelled" if cancelled else f"Solve failed: {outcome[1]}"
+                                           + (f". Reverted: {', '.join(reverted)}" if reverted else ""))
             self.report({"WARNING"} if cancelled else {"ERROR"},
                         "nfield: solve cancelled" if cancelled else f"nfield: solve failed: {outcome[1]}")
             return {"CANCELLED"}
@@ -178,6 +196,7 @@ class NFIELD_OT_precompute_spectral(NFieldObjectOperator, bpy.types.Operator):
         return not self._cancel
 
     def _work(self):
+        lower_worker_priority()
         try:
             self._outcome = ("ok",) + api.build_from_recipe(self._recipe, self._progress)
         except BaseException as exc:  # noqa: BLE001 - reported in the main thread

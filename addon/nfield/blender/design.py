@@ -1,7 +1,7 @@
 """The stored design of an object (``obj.nfield``): reading it, writing it, and keeping it on the mesh.
 
 The design is what the user made: hard constraints (face, direction, kind), pinned singularities (vertex,
-index numerator), the face list of an active region edit and the committed layers (faces + frozen values).
+index as numerator / the n it was placed at), the face list of an active region edit and the committed layers (faces + frozen values).
 It lives in the object's properties (``properties.NFieldSettings``), so it is saved with the .blend and
 restored by undo. This module is the only writer of those collections: the scripting API (``api``) and the
 viewport tools go through it, so an item is always created, re-aimed and removed the same way (one item
@@ -62,8 +62,53 @@ def desired_design(obj) -> tuple[dict, dict]:
     st = obj.nfield
     n = st.n
     dirs = {int(c.face): (c.kind, tuple(float(x) for x in c.direction)) for c in st.constraints if not c.stale}
-    sings = {int(s.vertex): s.numerator / n for s in st.singularities if not s.stale}
+    sings = {}
+    for s in st.singularities:
+        k = None if s.stale else singularity_numerator(s, n)
+        if k is not None:
+            sings[int(s.vertex)] = k / n
     return dirs, sings
+
+
+def singularity_index(item, n: int) -> float:
+    """The stored index of a singularity item (numerator / the n it was placed at)."""
+    return item.numerator / (item.denominator or n)
+
+
+def singularity_numerator(item, n: int) -> int | None:
+    """The numerator k of the item's index at symmetry n (index = k / n), None if the index is no multiple
+    of 1/n (e.g. +1/2 at n = 1): such an item is kept in the design but ignored and reported."""
+    den = item.denominator or n
+    if (item.numerator * n) % den:
+        return None
+    return item.numerator * n // den
+
+
+def pin_denominators(obj) -> None:
+    """Files from before the denominator was stored: their numerators refer to the n of the file; record
+    that n so the index is kept from now on."""
+    st = obj.nfield
+    for s in st.singularities:
+        if s.denominator == 0:
+            s.denominator = st.n
+
+
+def index_text(numerator: int, denominator: int) -> str:
+    """+1/2, -1/4, +1 (reduced)."""
+    from math import gcd
+
+    g = gcd(abs(numerator), denominator) or 1
+    p, q = numerator // g, denominator // g
+    return f"{p:+d}" if q == 1 else f"{p:+d}/{q}"
+
+
+def invalid_for_n(obj) -> list[str]:
+    """Messages for the live singularities whose index is no multiple of 1/n at the object's n."""
+    st = obj.nfield
+    n = st.n
+    return [f"singularity at vertex {s.vertex}: index {index_text(s.numerator, s.denominator or n)} is not a "
+            f"multiple of 1/{n} at n = {n} (ignored until n allows it or it is changed)"
+            for s in st.singularities if not s.stale and singularity_numerator(s, n) is None]
 
 
 def design_state(obj) -> tuple:
@@ -77,6 +122,8 @@ def stale_items(obj) -> list[str]:
     st = obj.nfield
     out = [f"constraint on face {c.face}" for c in st.constraints if c.stale]
     out += [f"singularity at vertex {s.vertex}" for s in st.singularities if s.stale]
+    out += [f"singularity at vertex {s.vertex} (index invalid for n = {st.n})" for s in st.singularities
+            if not s.stale and singularity_numerator(s, st.n) is None]
     out += [f"layer '{l.name}'" for l in st.layers if l.stale]
     return out
 
@@ -165,6 +212,7 @@ def set_singularity(obj, vertex: int, numerator: int, position) -> object:
         st.active_singularity_index = len(st.singularities) - 1
     item.vertex = vertex
     item.numerator = int(numerator)
+    item.denominator = st.n
     item.stale = False
     item.position = tuple(position)
     return item
@@ -227,7 +275,7 @@ def snapshot_design(obj) -> tuple:
     """Constraints and singularities of `obj` as plain tuples (for restore_design)."""
     st = obj.nfield
     cons = [(c.face, tuple(c.direction), c.kind, c.stale, tuple(c.centroid)) for c in st.constraints]
-    sings = [(s.vertex, s.numerator, s.stale, tuple(s.position)) for s in st.singularities]
+    sings = [(s.vertex, s.numerator, s.denominator, s.stale, tuple(s.position)) for s in st.singularities]
     return cons, sings
 
 
@@ -239,9 +287,9 @@ def restore_design(obj, saved: tuple) -> None:
         c = st.constraints.add()
         c.face, c.direction, c.kind, c.stale, c.centroid = face, d, kind, stale, centroid
     st.singularities.clear()
-    for vertex, num, stale, pos in sings:
+    for vertex, num, den, stale, pos in sings:
         s = st.singularities.add()
-        s.vertex, s.numerator, s.stale, s.position = vertex, num, stale, pos
+        s.vertex, s.numerator, s.denominator, s.stale, s.position = vertex, num, den, stale, pos
     st.active_constraint_index = _clamped_index(st.active_constraint_index, st.constraints)
     st.active_singularity_index = _clamped_index(st.active_singularity_index, st.singularities)
 

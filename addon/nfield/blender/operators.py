@@ -110,6 +110,11 @@ class NFIELD_OT_constraint_clear(NFieldObjectOperator, bpy.types.Operator):
 
     stale_only: BoolProperty(name="Stale Only", default=False)
 
+    def invoke(self, context, event):
+        if self.stale_only:  # removing what no longer applies needs no confirmation
+            return self.execute(context)
+        return context.window_manager.invoke_confirm(self, event)
+
     def execute(self, context):
         return self.run(context, lambda obj: f"nfield: removed {api.clear_constraints(obj, self.stale_only)} "
                                              f"constraint(s)", solve_after=True)

@@ -7,6 +7,8 @@ What is drawn, per mesh object with an nfield design (``obj.nfield``):
   directions; odd n: n half-segments starting at the centroid). Half-length = 0.4 x the local glyph spacing
   (the face's mean edge length, or the sample spacing when the mesh is subsampled) x ``glyph_scale``;
 * **constraint arrows**: thicker, orange, from the face centroid along the constraint direction, with a head;
+  at least ``MIN_ARROW_PX`` pixels long on screen (object-space length stretched up to ``MAX_ARROW_STRETCH``
+  times; rebuilt in a timer when the view changes, see :func:`constraint_arrows` for picking them);
 * **singularity markers**: points at the singular vertices, red for positive and blue for negative index;
   singularities pinned by the user are drawn larger with a white rim;
 
@@ -42,7 +44,7 @@ import numpy as np
 from gpu_extras.batch import batch_for_shader
 
 from . import mesh_read, session_cache
-from .glyphs import constraint_arrow_segments, glyph_segments, sample_faces
+from .glyphs import constraint_arrow_segments, glyph_segments, sample_faces, screen_min_length
 
 __all__ = ["GLYPH_BUDGET", "register", "unregister", "refresh", "tag_changed", "forget", "results_reset",
            "last_build_stats"]
@@ -57,6 +59,10 @@ COLOR_SING_POS = (0.9, 0.1, 0.1, 1.0)
 COLOR_SING_NEG = (0.1, 0.3, 1.0, 1.0)
 COLOR_RIM = (1.0, 1.0, 1.0, 1.0)
 COLOR_PICK = (1.0, 1.0, 0.0, 1.0)
+
+#: a constraint arrow is drawn at least this long on screen (stretched up to MAX_ARROW_STRETCH x its length)
+MIN_ARROW_PX = 48.0
+MAX_ARROW_STRETCH = 8.0
 
 WIDTH_GLYPH = 1.5
 WIDTH_CONSTRAINT = 4.0
@@ -73,11 +79,16 @@ class _State:
     result: Any = None  # last FieldResult handed over by refresh()/tag_changed()
     samples: dict = field(default_factory=dict)  # (mesh signature, target, faces with a field) -> glyph faces
     stats: dict = field(default_factory=dict)
+    spacing: float = 0.0  # glyph sample spacing of the last build (arrow lengths follow it)
+    view: Any = None  # (key, width, height, perspective matrix) of the view the arrows were last sized for
+    arrows: dict = field(default_factory=dict)  # face -> (tail, tip) object space, as drawn
+    geo: Any = None  # the overlay geometry of the last full build (arrow resizing reuses it: no mesh read)
 
 
 _states: dict[str, _State] = {}
 _handle = None
 _pending: set[str] = set()
+_pending_arrows: set[str] = set()
 _shaders: dict[str, Any] = {}
 _last_stats: dict = {}
 
@@ -201,18 +212,9 @@ def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
     t_glyph = time.perf_counter()
 
     # constraint arrows (from the stored design: always the user's latest edit, even mid-drag)
-    cons = [(c.face, tuple(c.direction)) for c in s.constraints if not c.stale and c.face < num_polys]
-    if cons:
-        faces_c = np.array([f for f, _ in cons], dtype=np.int64)
-        d = np.array([v for _, v in cons], dtype=np.float32)
-        nrm = geo.normals[faces_c]
-        d = d - nrm * np.sum(d * nrm, axis=1, keepdims=True)
-        ok = np.linalg.norm(d, axis=1) > 0
-        local = np.maximum(geo.edge_len[faces_c], 0.8 * spacing)
-        org = geo.centroids[faces_c] + nrm * (0.04 * local)[:, None]
-        verts = constraint_arrow_segments(org[ok], nrm[ok], d[ok], (1.6 * local * float(s.glyph_scale))[ok])
-        if len(verts):
-            batches["constraints"] = batch_for_shader(line[0], "LINES", {"pos": verts})
+    state.spacing = spacing
+    state.geo = geo
+    batches.update(_arrow_batches(obj, state, geo))
 
     # singularity markers
     sings = _singularities_for(obj, state)
@@ -247,6 +249,43 @@ def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
     _last_stats.clear()
     _last_stats.update(state.stats)
     _last_stats["object"] = obj.name
+
+
+def _arrow_batches(obj, state: _State, geo) -> dict:
+    """The constraint arrows' batch (and state.arrows) for the view state.view was last drawn with."""
+    s = obj.nfield
+    num_polys = len(geo.centroids)
+    state.arrows = {}
+    cons = [(c.face, tuple(c.direction)) for c in s.constraints if not c.stale and c.face < num_polys]
+    if not cons:
+        return {}
+    faces_c = np.array([f for f, _ in cons], dtype=np.int64)
+    d = np.array([v for _, v in cons], dtype=np.float64)
+    nrm = geo.normals[faces_c].astype(np.float64)
+    d = d - nrm * np.sum(d * nrm, axis=1, keepdims=True)
+    ok = np.linalg.norm(d, axis=1) > 0
+    d[ok] /= np.linalg.norm(d[ok], axis=1, keepdims=True)
+    local = np.maximum(geo.edge_len[faces_c], 0.8 * state.spacing)
+    org = geo.centroids[faces_c] + nrm * (0.04 * local)[:, None]
+    length = 1.6 * local * float(s.glyph_scale)
+    if state.view is not None:
+        _key, width, height, persp = state.view
+        mvp = np.asarray(persp, dtype=np.float64) @ np.array(obj.matrix_world, dtype=np.float64)
+        length = screen_min_length(org, d, length, mvp, (width, height), MIN_ARROW_PX, MAX_ARROW_STRETCH)
+    state.arrows = {int(f): (org[i].copy(), org[i] + d[i] * length[i]) for i, f in enumerate(faces_c) if ok[i]}
+    verts = constraint_arrow_segments(org[ok], nrm[ok], d[ok], length[ok])
+    return {"constraints": batch_for_shader(_shader("line")[0], "LINES", {"pos": verts})} if len(verts) else {}
+
+
+def constraint_arrows(obj) -> dict:
+    """face -> (tail, tip) in object space of the constraint arrows as last drawn (for picking)."""
+    state = _states.get(getattr(obj, "name", ""))
+    return {} if state is None else dict(state.arrows)
+
+
+def _view_key(region, rv3d) -> tuple:
+    m = rv3d.perspective_matrix
+    return (region.width, region.height, tuple(round(m[i][j], 6) for i in range(4) for j in range(4)))
 
 
 def _can_draw() -> bool:
@@ -309,9 +348,25 @@ def _schedule(name: str) -> None:
         bpy.app.timers.register(_rebuild_pending, first_interval=0.0)
 
 
+def _schedule_arrows(name: str) -> None:
+    _pending_arrows.add(name)
+    if not bpy.app.timers.is_registered(_rebuild_pending):
+        bpy.app.timers.register(_rebuild_pending, first_interval=0.0)
+
+
 def _rebuild_pending():
     names = list(_pending)
     _pending.clear()
+    for name in [a for a in _pending_arrows if a not in names]:
+        obj = bpy.data.objects.get(name)
+        state = _states.get(name)
+        if obj is not None and state is not None and state.geo is not None:
+            try:
+                state.batches.pop("constraints", None)
+                state.batches.update(_arrow_batches(obj, state, state.geo))
+            except Exception as exc:  # noqa: BLE001 - never break the UI
+                print(f"nfield overlay: cannot size the arrows of {name!r}: {exc}")
+    _pending_arrows.clear()
     for name in names:
         obj = bpy.data.objects.get(name)
         if obj is not None and obj.type == "MESH" and hasattr(obj, "nfield"):
@@ -387,6 +442,13 @@ def _draw_callback():
             s = obj.nfield
             if state.built != _built_key(obj, state):
                 _schedule(obj.name)  # keep drawing the previous batches meanwhile
+            if len(s.constraints):
+                view = _view_key(region, context.region_data)
+                if state.view is None or state.view[0] != view:
+                    # the arrows keep a minimum size on screen: resize them for this view (in a timer)
+                    state.view = (view, region.width, region.height,
+                                  [list(row) for row in context.region_data.perspective_matrix])
+                    _schedule_arrows(obj.name)
             b = state.batches
             if not b:
                 continue
@@ -441,3 +503,4 @@ def unregister():
     _states.clear()
     _shaders.clear()
     _pending.clear()
+    _pending_arrows.clear()

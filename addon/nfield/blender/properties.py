@@ -9,7 +9,8 @@ The user's design is stored as CollectionProperty items so that it survives save
 
 * ``constraints`` (:class:`NFieldConstraint`): face + direction + kind + ``stale`` flag (+ the face centroid
   at placement time, used to remap the constraint when the topology changes),
-* ``singularities`` (:class:`NFieldSingularity`): vertex + index numerator (index = numerator / n),
+* ``singularities`` (:class:`NFieldSingularity`): vertex + index (numerator / denominator: the
+  index is kept when n changes; an index that is no multiple of 1/n is ignored and reported),
 * ``region_faces`` + ``region_active``: the faces of the region being edited (section 9 of the paper),
 * ``layers`` (:class:`NFieldLayer`): committed regions = face list + the frozen field values.
 
@@ -68,10 +69,16 @@ class NFieldConstraint(PropertyGroup):
 
 
 class NFieldSingularity(PropertyGroup):
-    """A prescribed singularity at a vertex: index = numerator / n."""
+    """A prescribed singularity at a vertex: index = numerator / denominator (the n it was placed at); valid
+    for a symmetry n when index x n is an integer (design.singularity_numerator)."""
 
     vertex: IntProperty(name="Vertex", min=0)
-    numerator: IntProperty(name="Index Numerator", description="Singularity index times n (index = numerator / n)")
+    numerator: IntProperty(name="Index Numerator",
+                           description="Singularity index times the n it was placed at (index = numerator / denominator)")
+    denominator: IntProperty(
+        name="Index Denominator", default=0, min=0,
+        description="The symmetry n the index was placed at (0: the object's current n, files from before). "
+                    "The index, not the numerator, is kept when n changes")
     stale: BoolProperty(name="Stale", default=False,
                         description="The vertex no longer exists; kept but ignored until fixed or removed")
     position: FloatVectorProperty(name="Position", size=3, subtype="XYZ",
@@ -171,6 +178,8 @@ class NFieldSettings(PropertyGroup):
     last_energy: FloatProperty(name="Energy", default=0.0)
     last_message: StringProperty(name="Message", default="")
     spectral_ready: BoolProperty(name="Spectral Basis Ready", default=False)
+    last_solver_state: StringProperty(name="Solver State", default="",
+                                      description="How the last field was solved (exact / spectral, basis source)")
 
     # --- convenience (no math)
     @property

@@ -109,8 +109,8 @@ def ensure_session(obj, entry: CacheEntry, progress=None):
     if entry.session is not None and _settings_differ(entry.extra.get("settings"), kw):
         try:
             if (entry.extra.get("settings") or {}).get("n", kw["n"]) != kw["n"]:
-                # the design stores index numerators (index = numerator / n): a new n changes every index, so
-                # the session's singularities go and apply_design below sets them for the new n
+                # a new n may make a stored index invalid (+1/2 at n = 1): the session's singularities go and
+                # apply_design below sets the ones valid for the new n (design.desired_design)
                 for c in entry.session.constraints:
                     if isinstance(c, SingularityConstraint):
                         entry.session.remove_singularity(c.vertex)

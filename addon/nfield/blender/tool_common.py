@@ -14,7 +14,7 @@ from __future__ import annotations
 from bpy_extras import view3d_utils
 from mathutils import Vector
 
-from . import api, design, jobs, mesh_read
+from . import api, design, jobs, mesh_read, overlay
 from .operator_base import failure_message
 
 #: a click within this many pixels of a constraint's centroid / a pinned singularity picks it
@@ -87,12 +87,32 @@ def nearest_on_screen(context, obj, points_obj, mouse, limit):
 
 def constraint_under_cursor(context, obj, mouse, hit, arrays: mesh_read.MeshArrays):
     """Face of the constraint the user points at: the constrained face under the cursor (`hit`, from
-    ray_cast), else the arrow nearest on screen (its face may be small or hidden behind the arrow); or None."""
+    ray_cast), else the arrow nearest on screen within PICK_PIXELS of any point of its shaft or head (as the
+    overlay drew it: pressing the arrowhead, which reaches over neighbouring faces, grabs that arrow); or
+    None."""
     if hit is not None and design.constraint_item(obj, hit[2]) is not None:
         return hit[2]
     items = [c for c in obj.nfield.constraints if not c.stale and c.face < arrays.num_polygons]
-    i = nearest_on_screen(context, obj, [arrays.polygon_centers[c.face] for c in items], mouse, PICK_PIXELS)
-    return None if i is None else items[i].face
+    drawn = overlay.constraint_arrows(obj)
+    best, best_d = None, float(PICK_PIXELS)
+    m = Vector(mouse)
+    for c in items:
+        tail, tip = drawn.get(c.face, (arrays.polygon_centers[c.face], arrays.polygon_centers[c.face]))
+        a = _to_region(context, obj, Vector(tuple(tail)))
+        b = _to_region(context, obj, Vector(tuple(tip)))
+        if a is None or b is None:
+            continue
+        dist = _segment_distance(m, a, b)
+        if dist <= best_d:
+            best, best_d = c.face, dist
+    return best
+
+
+def _segment_distance(p: Vector, a: Vector, b: Vector) -> float:
+    """Distance (pixels) from p to the segment ab."""
+    ab = b - a
+    t = 0.0 if ab.length_squared == 0 else max(0.0, min(1.0, (p - a).dot(ab) / ab.length_squared))
+    return (p - (a + ab * t)).length
 
 
 def pinned_singularity_under_cursor(context, obj, mouse, arrays: mesh_read.MeshArrays):

@@ -2,7 +2,8 @@
 
 * ``nfield.constraint_tool`` (modal): press on a face and drag to aim its direction constraint in the face's
   tangent plane; the field follows live during the drag (the session's re-aim path: no new factorization).
-  Pressing on a constrained face, or within ``PICK_PIXELS`` of a constraint arrow, re-aims that constraint.
+  Pressing on a constrained face, or within ``PICK_PIXELS`` of any point of a constraint arrow (shaft or
+  head, as drawn), re-aims that constraint. A press off the mesh does nothing.
   A click without a drag pins the current field direction of the face. Release: one undo step.
   Esc / right-click: restore the state before the drag.
 * ``nfield.constraint_delete``: delete the constraint under the cursor (X / Delete in the tool).
@@ -64,7 +65,9 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
         last_press.update(tool="constraint", mouse=list(mouse), object=obj.name, face=face,
                           hit_face=None if hit is None else hit[2])
         if face is None:
-            return {"PASS_THROUGH"}
+            # off the mesh: nothing, and the press must not fall through to select / move while this tool
+            # is active (a cancelled keymap operator ends the event's handling)
+            return {"CANCELLED"}
         if not self._open_session(obj):
             return {"CANCELLED"}
         self._obj_name = obj.name

@@ -40,13 +40,13 @@ class NFIELD_OT_singularity_tool(ModalViewportTool, Operator):
         mouse = (event.mouse_region_x, event.mouse_region_y)
         vertex = self._pick_vertex(context, obj, mouse)
         if vertex is None:
-            return {"PASS_THROUGH"}
+            return {"CANCELLED"}  # off the mesh: nothing (no fall-through to select / move)
         if not self._open_session(obj):
             return {"CANCELLED"}
         self._obj_name = obj.name
         self._vertex = vertex
         item = design.singularity_item(obj, vertex)
-        self._before = None if item is None else int(item.numerator)
+        self._before = None if item is None else design.singularity_numerator(item, obj.nfield.n)
         self._before_result = self._entry.result
         self._numerator = self._before if self._before is not None else 1
         self._changed = False

@@ -56,18 +56,46 @@ _tools = (NFIELD_TL_constraint, NFIELD_TL_singularity)
 _registered_tools: list = []
 
 
+#: the block the tools go after: the transform tools (Move ... Transform) of the object-mode toolbar
+AFTER_TOOL = "builtin.scale_cage"
+
+
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
     if bpy.app.background:
         return  # no toolbar without a window
-    after = {"builtin.scale_cage"}
+    # Each tool is a group of its own (a one-tool group draws as a plain button): register_tool then inserts
+    # it at the top level after the group holding `after` (the Scale group) and its block, so the
+    # separator lands between blocks. group=False would put the tools and a None separator *inside* the
+    # Scale flyout, which breaks every toolbar query (_tool_get_group_by_id reads item.idname of the None).
+    after = {AFTER_TOOL}
     for i, tool in enumerate(_tools):
         try:
-            bpy.utils.register_tool(tool, after=after, separator=(i == 0), group=False)
+            bpy.utils.register_tool(tool, after=after, separator=(i == 0), group=True)
             _registered_tools.append(tool)
         except Exception as exc:  # noqa: BLE001 - an older/newer toolbar layout must not block the add-on
             print(f"nfield: cannot add the toolbar tool {tool.bl_label!r}: {exc}")
+        after = {tool.bl_idname}
+
+
+def toolbar_layout(context_mode: str = "OBJECT") -> list:
+    """The 3D view toolbar of `context_mode` as nested lists of tool ids (None: a separator), for checks."""
+    from bl_ui.space_toolsystem_common import ToolSelectPanelHelper
+
+    cls = ToolSelectPanelHelper._tool_class_from_space_type("VIEW_3D")
+    out = []
+
+    def name(t):
+        # a ToolDef is a namedtuple: ask for its id before treating tuples as groups
+        return None if t is None else getattr(t, "idname", None) or repr(t)
+
+    for item in cls._tools[context_mode]:
+        if item is None or hasattr(item, "idname") or not isinstance(item, tuple):
+            out.append(name(item))
+        else:
+            out.append([name(t) for t in item])
+    return out
 
 
 def unregister():

@@ -239,8 +239,11 @@ def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], 
         num = s.index * n
         rounded = round(num)
         if abs(num - rounded) > INDEX_TOLERANCE:
+            # the nearest singular index (k != 0: index 0 is no singularity)
+            k = min((c for c in (math.floor(num), math.ceil(num)) if c != 0), key=lambda c: abs(c - num))
             raise ValueError(f"singularity index {s.index!r} at vertex {s.vertex} is not a multiple of 1/{n} "
-                             f"(for n = {n} use k/{n}, e.g. {rounded / n!r})")
+                             f"(for n = {n} an index is k/{n} with a non-zero integer k; the nearest is "
+                             f"{k}/{n} = {k / n:g})")
         out.append((s.vertex, int(rounded)))
     return out
 
