@@ -5,7 +5,9 @@
 #include <sstream>
 
 #include "nfield/errors.hpp"
+#include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
+#include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
@@ -159,11 +161,36 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   optimise_positions(levels, po, [&](double f) { return !progress || progress(0.15 + 0.7 * f); });
   result.seconds_positions = seconds_since(t0);
 
-  // 5. Extraction.
+  // 5. Integer offsets; position singularities cancelled by a minimum-cost flow, positions re-solved.
+  t0 = std::chrono::steady_clock::now();
+  LatticeOffsets offsets = compute_lattice_offsets(surface, levels[0], s);
+  if (options.cancel_position_singularities) {
+    const auto face_edges = triangle_edges(surface);
+    const LatticeOffsets before = offsets;
+    const CancellationReport c = cancel_position_singularities(surface, levels[0], face_edges, features.edge_is_feature,
+                                                               s, offsets, {}, [&]() { return progress && !progress(0.86); });
+    report(0.86);
+    result.cancellation = c;
+    if (c.changed_offsets > 0) {
+      const std::vector<Vec3> old_p = levels[0].p;
+      if (resolve_positions(surface, levels[0], offsets, s)) {
+        result.moved_representatives = normalize_representatives(surface, levels[0], offsets, s);
+      } else {
+        // The re-solve is a least-squares problem on the changed offsets; when it fails (singular system)
+        // the optimised positions and their own offsets are still a valid input to the extraction.
+        levels[0].p = old_p;
+        offsets = before;
+        result.messages.push_back("the position re-solve failed: position singularities were left as they were");
+      }
+    }
+  }
+  result.seconds_flow = seconds_since(t0);
+
+  // 6. Extraction.
   t0 = std::chrono::steady_clock::now();
   const ProjectionTargets targets = make_projection_targets(surface, features);
-  result.mesh = extract_quad_mesh(surface, features, levels[0], s, targets, options.max_face_size, result.extraction,
-                                  &result.vertex_feature_kind);
+  result.mesh = extract_quad_mesh(surface, features, levels[0], offsets, s, targets, options.max_face_size,
+                                  result.extraction, &result.vertex_feature_kind);
   const CleanupReport cleanup = clean_up_quads(result.mesh, result.vertex_feature_kind);
   result.cleanup_doublets = cleanup.doublets;
   result.cleanup_triangle_pairs = cleanup.triangle_pairs + cleanup.triangle_pentagon_pairs;
@@ -172,7 +199,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   report(0.95);
 
-  // 6. Pure quads.
+  // 7. Pure quads.
   if (options.pure_quads) {
     std::vector<int> kind;
     std::vector<std::array<int, 2>> edge_of;
