@@ -125,12 +125,15 @@ void bind_remesh(py::module_& m) {
         py::arg("before") = c.position_singularities_before, py::arg("after") = c.position_singularities_after,
         py::arg("folded_before") = c.folded_before, py::arg("routed") = c.routed, py::arg("unrouted") = c.unrouted,
         py::arg("changed_offsets") = c.changed_offsets, py::arg("fixed_offsets") = c.fixed_offsets,
-        py::arg("cost") = c.cost, py::arg("moved_representatives") = r.moved_representatives);
+        py::arg("cost") = c.cost, py::arg("moved_representatives") = r.moved_representatives,
+        py::arg("phases") = c.phases, py::arg("augmentations") = c.augmentations,
+        py::arg("seconds_network") = c.seconds_network, py::arg("seconds_solve") = c.seconds_solve);
     py::dict t;
     t["setup"] = r.seconds_setup;
     t["hierarchy"] = r.seconds_hierarchy;
     t["positions"] = r.seconds_positions;
     t["flow"] = r.seconds_flow;
+    t["resolve"] = r.seconds_resolve;
     t["extraction"] = r.seconds_extraction;
     d["seconds"] = t;
     return d;

@@ -68,7 +68,9 @@ MinCostFlow::Result MinCostFlow::solve(const std::function<bool()>& cancelled) {
   };
   while (remaining_supply > 0 && remaining_demand > 0) {
     if (cancelled && cancelled()) return finish();
-    // 1. Dijkstra from every node with remaining supply at once, over all reachable nodes.
+    // 1. Dijkstra from every node with remaining supply at once, stopped when the first node with remaining
+    //    demand is settled (at distance D): row ends pair locally, so a phase explores a small ball
+    //    instead of the whole network.
     std::fill(dist.begin(), dist.end(), kInf);
     std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> heap;
     for (int v = 0; v < n; ++v)
@@ -83,7 +85,10 @@ MinCostFlow::Result MinCostFlow::solve(const std::function<bool()>& cancelled) {
       heap.pop();
       if (d > dist[u]) continue;
       farthest = d;
-      reached_demand = reached_demand || excess[u] < 0;
+      if (excess[u] < 0) {
+        reached_demand = true;
+        break;
+      }
       for (int k = offsets[u]; k < offsets[u + 1]; ++k) {
         const Arc& arc = arcs_[out[k]];
         if (arc.capacity <= 0) continue;
@@ -96,9 +101,11 @@ MinCostFlow::Result MinCostFlow::solve(const std::function<bool()>& cancelled) {
       }
     }
     if (!reached_demand) break;  // no remaining supply reaches any remaining demand
-    // 2. Potentials: reached nodes by their distance, the others by the largest one; every residual arc
-    //    keeps a reduced cost >= 0 and the shortest-path trees get reduced cost 0.
-    for (int v = 0; v < n; ++v) potential[v] += dist[v] < kInf ? dist[v] : farthest;
+    // 2. Potentials raised by min(dist, D) (dist: settled distances, tentative labels >= D, or infinity):
+    //    every residual arc keeps a reduced cost >= 0 (an arc out of a settled node u was relaxed, so
+    //    min(dist_v, D) <= dist_u + its reduced cost; out of any other node the raise D is the largest), and
+    //    the shortest paths to the nearest demand get reduced cost 0.
+    for (int v = 0; v < n; ++v) potential[v] += std::min(dist[v], farthest);
     // 3. Blocking flow on the admissible arcs (residual, reduced cost 0): every path found is a shortest
     //    path for the current potentials, so each augmentation keeps reduced-cost optimality.
     std::copy(offsets.begin(), offsets.end() - 1, current.begin());

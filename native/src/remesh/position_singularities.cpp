@@ -1,6 +1,7 @@
 #include "nfield/remesh/position_singularities.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <queue>
 
@@ -25,6 +26,7 @@ CancellationReport cancel_position_singularities(const RemeshSurface& s, const H
                                                  LatticeOffsets& o, const CancellationOptions& options,
                                                  const std::function<bool()>& cancelled) {
   CancellationReport report;
+  const auto t0 = std::chrono::steady_clock::now();
   const int T = static_cast<int>(s.triangles.size());
   const int E = static_cast<int>(s.edges.size());
   const FaceDefects before = face_defects(s, fe, o);
@@ -164,7 +166,12 @@ CancellationReport cancel_position_singularities(const RemeshSurface& s, const H
       variables.push_back(std::move(v));
     }
   }
+  const auto t1 = std::chrono::steady_clock::now();
+  report.seconds_network = std::chrono::duration<double>(t1 - t0).count();
   const MinCostFlow::Result result = flow.solve(cancelled);
+  report.seconds_solve = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  report.phases = result.phases;
+  report.augmentations = result.augmentations;
   report.routed = result.routed;
   report.unrouted = result.unrouted;
   report.cost = result.cost;

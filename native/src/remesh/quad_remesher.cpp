@@ -171,6 +171,8 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
                                                                s, offsets, {}, [&]() { return progress && !progress(0.86); });
     report(0.86);
     result.cancellation = c;
+    result.seconds_flow = seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
     if (c.changed_offsets > 0) {
       const std::vector<Vec3> old_p = levels[0].p;
       if (resolve_positions(surface, levels[0], offsets, s)) {
@@ -183,8 +185,10 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
         result.messages.push_back("the position re-solve failed: position singularities were left as they were");
       }
     }
+    result.seconds_resolve = seconds_since(t0);
+  } else {
+    result.seconds_flow = seconds_since(t0);
   }
-  result.seconds_flow = seconds_since(t0);
 
   // 6. Extraction.
   t0 = std::chrono::steady_clock::now();

@@ -10,13 +10,15 @@
 // Method: successive shortest paths with node potentials pi (the primal-dual form, as for the Hungarian
 // method): reduced costs c_a + pi(tail) - pi(head) of residual arcs stay >= 0 (pi = 0 at the start, since
 // every cost is >= 0), which certifies that the flow is a cheapest one for the amounts it has moved. Each
-// phase runs one Dijkstra from all nodes with remaining supply at once and raises every potential by its
-// distance (the shortest-path trees then have reduced cost 0), then pushes flow along as many
+// phase runs one Dijkstra from all nodes with remaining supply at once, stopped when the nearest node with
+// remaining demand is settled at distance D, and raises every potential by min(distance, D) (reduced costs
+// stay >= 0 and the shortest paths to that demand get reduced cost 0), then pushes flow along as many
 // admissible paths (residual arcs of reduced cost 0) from supply to demand nodes as a depth-first search
 // finds (a blocking flow). Augmenting along arcs of reduced cost 0 keeps every reduced cost >= 0, so the
 // final flow is optimal when all supply is routed; phases stop when no demand is reachable (the routed
 // amount is then the maximum, but the cost need not be the least among maximum flows). Few phases are
-// needed when many sources have a demand nearby, and each costs O(A log V).
+// needed when many sources have a demand nearby; a phase costs O(A_D log V_D) for the ball of radius D it
+// explores, plus O(V) to update the potentials.
 #pragma once
 #include <functional>
 #include <vector>

@@ -48,6 +48,8 @@ struct CancellationReport {
   int changed_offsets = 0;            ///< edge offset components changed
   int fixed_offsets = 0;              ///< offset components the network cannot change (seams, features)
   double cost = 0;
+  int phases = 0, augmentations = 0;  ///< of the flow solver (min_cost_flow.hpp)
+  double seconds_network = 0, seconds_solve = 0;  ///< building the network / solving the flow
 };
 
 /// Changes `offsets` so that as many regular triangles as possible have zero residual, at least total

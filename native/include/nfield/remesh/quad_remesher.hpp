@@ -50,7 +50,8 @@ struct QuadRemeshResult {
   int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
   CancellationReport cancellation;        ///< position singularities before / after the flow
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
-  double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_extraction = 0;
+  double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
+         seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
 };
 
 /// `triangle_directions`: one 3D tangent direction of the cross field per face of `mesh` (any of the four;
