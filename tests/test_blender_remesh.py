@@ -136,9 +136,9 @@ def test_quad_remesh_is_one_undo_step(fandisk_with_field):
 
 
 def test_settings_panel_and_scripting_api(fandisk_with_field):
-    _, nb, obj = fandisk_with_field
+    pkg, nb, obj = fandisk_with_field
     st = obj.nfield_remesh
-    assert st.target_faces == 5000 and not st.pure_quads and st.keep_boundary and st.keep_sharp
+    assert st.target_faces == 5000 and not st.pure_quads and st.keep_boundary and st.keep_sharp and st.pair_row_ends
     assert math.degrees(st.sharp_angle) == pytest.approx(40.0)
     assert bpy.types.NFIELD_PT_remesh.bl_parent_id == "NFIELD_PT_main"
     new, stats = nb.quad_remesh(obj, target_faces=600, seed=1)
@@ -148,6 +148,12 @@ def test_settings_panel_and_scripting_api(fandisk_with_field):
     Va, Fa = _polygons(new)
     Vb, Fb = _polygons(again)
     assert Fa == Fb and np.array_equal(Va, Vb)
+    # "Pair Row Ends" on (default) lets the flow remove row ends; off skips it (the fast single pass)
+    ps = stats["position_singularities"]
+    assert ps["after"] < ps["before"], ps
+    assert bpy.ops.nfield.quad_remesh(target_faces=600, seed=1, pair_row_ends=False) == {"FINISHED"}
+    off = blender_module(pkg, "remesh_operator").remesh_status["stats"]["position_singularities"]
+    assert off["changed_offsets"] == 0 and off["routed"] == 0, off
 
 
 def test_refusals_name_the_problem(scene):

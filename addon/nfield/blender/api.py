@@ -694,7 +694,7 @@ REMESH_INFO_KEYS = ("num_faces", "num_quads", "quad_fraction", "irregular_vertic
 
 def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | None = None,
                   pure_quads: bool = False, keep_boundary: bool = True, sharp_angle: float | None = 40.0,
-                  seed: int = 0) -> dict:
+                  seed: int = 0, cancel_position_singularities: bool = True) -> dict:
     """Everything a quad remesh of `obj` needs, read in the main thread: the core mesh of its base mesh and
     its current field (the last solve; NFieldError if it has none: solve first). Options as in
     nfield.core.quad_remesh (`edge_length` in object units wins over `target_faces`; `sharp_angle` in degrees,
@@ -715,7 +715,8 @@ def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | 
         raise NFieldError(f"the target face count must be at least 1, got {target_faces}")
     options = {"target_faces": None if target_faces is None else int(target_faces), "edge_length": edge_length,
                "pure_quads": bool(pure_quads), "keep_boundary": bool(keep_boundary),
-               "sharp_angle": None if sharp_angle is None else float(sharp_angle), "seed": int(seed)}
+               "sharp_angle": None if sharp_angle is None else float(sharp_angle), "seed": int(seed),
+               "cancel_position_singularities": bool(cancel_position_singularities)}
     return {"object": obj.name, "mesh": entry.mesh, "field": result, "options": options}
 
 
@@ -744,11 +745,12 @@ def adopt_remesh(obj, recipe: dict, quad_mesh):
 
 def quad_remesh(obj, *, target_faces: int | None = 5000, edge_length: float | None = None,
                 pure_quads: bool = False, keep_boundary: bool = True, sharp_angle: float | None = 40.0,
-                seed: int = 0, progress=None):
+                seed: int = 0, cancel_position_singularities: bool = True, progress=None):
     """A new quad mesh object beside `obj` whose edges follow its designed field (blocking; `obj` is left
     as it is). Returns (new object, stats) (stats: nfield.core.quad_remesh's quality figures)."""
     recipe = remesh_recipe(obj, target_faces=target_faces, edge_length=edge_length, pure_quads=pure_quads,
-                           keep_boundary=keep_boundary, sharp_angle=sharp_angle, seed=seed)
+                           keep_boundary=keep_boundary, sharp_angle=sharp_angle, seed=seed,
+                           cancel_position_singularities=cancel_position_singularities)
     qm = remesh_from_recipe(recipe, progress)
     return adopt_remesh(obj, recipe, qm), qm.stats
 

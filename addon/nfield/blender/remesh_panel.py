@@ -54,6 +54,7 @@ class NFIELD_PT_remesh(bpy.types.Panel):
         sub = row.row(align=True)
         sub.active = st.keep_sharp
         sub.prop(st, "sharp_angle")
+        col.prop(st, "pair_row_ends")
         col.prop(st, "seed")
         op = layout.operator("nfield.quad_remesh", icon="MOD_REMESH")
         for name in OPTION_NAMES:

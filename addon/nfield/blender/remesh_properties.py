@@ -36,6 +36,10 @@ def option_properties() -> dict:
         "sharp_angle": FloatProperty(
             name="Sharp Angle", default=math.radians(40.0), min=0.0, max=math.pi, subtype="ANGLE",
             description="Edges whose faces turn by more than this are kept as feature curves"),
+        "pair_row_ends": BoolProperty(
+            name="Pair Row Ends", default=True,
+            description="Cancel the lattice's row ends with a minimum-cost flow: about 2-3 times fewer irregular "
+                        "vertices and 99% quads, but several times slower (off: the fast single pass)"),
         "seed": IntProperty(
             name="Seed", default=0, min=0,
             description="Seed of the lattice origins: the same seed gives the same mesh"),
@@ -51,6 +55,7 @@ def api_options(src) -> dict:
         "keep_boundary": bool(src.keep_boundary),
         "sharp_angle": math.degrees(src.sharp_angle) if src.keep_sharp else None,
         "seed": int(src.seed),
+        "cancel_position_singularities": bool(src.pair_row_ends),
     }
 
 
