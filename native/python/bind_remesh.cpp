@@ -10,6 +10,7 @@
 #include "binding_support.hpp"
 #include "nfield/errors.hpp"
 #include "nfield/mesh.hpp"
+#include "nfield/remesh/min_cost_flow.hpp"
 #include "nfield/remesh/quad_remesher.hpp"
 #include "nfield/remesh/quad_stats.hpp"
 
@@ -84,7 +85,7 @@ void bind_remesh(py::module_& m) {
   m.def("quad_remesh", [](std::shared_ptr<TriangleMesh> mesh, const DoubleArray& directions, double edge_length,
                           bool pure_quads, bool keep_boundary, double sharp_angle, unsigned long long seed,
                           int iterations, int max_face_size, bool refuse_small_components, int relax_iterations,
-                          const py::object& progress) {
+                          bool cancel_position_singularities, const py::object& progress) {
     const std::vector<Vec3> dirs = to_points(directions, "field directions");
     QuadRemeshOptions o;
     o.edge_length = edge_length;
@@ -96,6 +97,7 @@ void bind_remesh(py::module_& m) {
     o.max_face_size = max_face_size;
     o.refuse_small_components = refuse_small_components;
     o.relax_iterations = relax_iterations;
+    o.cancel_position_singularities = cancel_position_singularities;
     const PythonProgress cb = wrap_progress(progress);
     const QuadRemeshResult r =
         run_with_progress(cb, [&] { return without_gil([&] { return quad_remesh(*mesh, dirs, o, cb.callback); }); });
@@ -117,18 +119,55 @@ void bind_remesh(py::module_& m) {
     d["cleanup"] = py::dict(py::arg("doublets") = r.cleanup_doublets, py::arg("triangle_pairs") = r.cleanup_triangle_pairs,
                             py::arg("triangle_strips") = r.cleanup_triangle_strips,
                             py::arg("split_large_faces") = r.cleanup_split_faces);
+    const CancellationReport& c = r.cancellation;
+    d["position_singularities"] = py::dict(
+        py::arg("orientation_singularities") = c.orientation_singularities,
+        py::arg("before") = c.position_singularities_before, py::arg("after") = c.position_singularities_after,
+        py::arg("folded_before") = c.folded_before, py::arg("routed") = c.routed, py::arg("unrouted") = c.unrouted,
+        py::arg("changed_offsets") = c.changed_offsets, py::arg("fixed_offsets") = c.fixed_offsets,
+        py::arg("cost") = c.cost, py::arg("moved_representatives") = r.moved_representatives,
+        py::arg("phases") = c.phases, py::arg("augmentations") = c.augmentations,
+        py::arg("seconds_network") = c.seconds_network, py::arg("seconds_solve") = c.seconds_solve);
     py::dict t;
     t["setup"] = r.seconds_setup;
     t["hierarchy"] = r.seconds_hierarchy;
     t["positions"] = r.seconds_positions;
+    t["flow"] = r.seconds_flow;
+    t["resolve"] = r.seconds_resolve;
     t["extraction"] = r.seconds_extraction;
     d["seconds"] = t;
     return d;
   }, py::arg("mesh"), py::arg("directions"), py::arg("edge_length"), py::arg("pure_quads") = false,
      py::arg("keep_boundary") = true, py::arg("sharp_angle") = 40.0, py::arg("seed") = 0ULL, py::arg("iterations") = 10,
      py::arg("max_face_size") = 12, py::arg("refuse_small_components") = false,
-     py::arg("relax_iterations") = 2, py::arg("progress") = py::none(),
+     py::arg("relax_iterations") = 2, py::arg("cancel_position_singularities") = true,
+     py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face (see nfield/remesh/quad_remesher.hpp)");
+
+  m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,
+                            const DoubleArray& costs, const IndexArray& supplies) {
+    const std::vector<int> t = to_ints(tails, "tails"), h = to_ints(heads, "heads"), u = to_ints(capacities, "capacities");
+    const std::vector<int> b = to_ints(supplies, "supplies");
+    if (costs.ndim() != 1) throw InputError("costs must be a 1-D array");
+    if (h.size() != t.size() || u.size() != t.size() || static_cast<size_t>(costs.shape(0)) != t.size())
+      throw InputError("tails, heads, capacities and costs must have the same length");
+    if (num_nodes < 0 || b.size() != static_cast<size_t>(num_nodes)) throw InputError("supplies must have one entry per node");
+    MinCostFlow f(num_nodes);
+    for (size_t a = 0; a < t.size(); ++a) f.add_arc(t[a], h[a], u[a], costs.data()[a]);
+    for (int v = 0; v < num_nodes; ++v) f.add_supply(v, b[v]);
+    const MinCostFlow::Result r = without_gil([&] { return f.solve(); });
+    std::vector<int> x(t.size());
+    for (size_t a = 0; a < t.size(); ++a) x[a] = f.flow(static_cast<int>(a));
+    py::dict d;
+    d["flow"] = from_std(x);
+    d["routed"] = r.routed;
+    d["unrouted"] = r.unrouted;
+    d["cost"] = r.cost;
+    return d;
+  }, py::arg("num_nodes"), py::arg("tails"), py::arg("heads"), py::arg("capacities"), py::arg("costs"),
+     py::arg("supplies"),
+     "Minimum-cost flow by successive shortest paths (nfield/remesh/min_cost_flow.hpp): routes as many supply "
+     "units (supplies > 0) to demand nodes (supplies < 0) as possible at least cost; costs >= 0");
 
   m.def("polygon_manifold_report", [](const DoubleArray& V, const IndexArray& offsets, const IndexArray& indices) {
     const PolygonMesh pm = to_polygon_mesh(V, offsets, indices);

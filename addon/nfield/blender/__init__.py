@@ -34,6 +34,9 @@ from . import (
     overlay,
     panels,
     properties,
+    remesh_operator,
+    remesh_panel,
+    remesh_properties,
     state,
     tools,
 )
@@ -54,6 +57,7 @@ from .api import (  # noqa: F401  (public scripting API)
     guide_report,
     mirror_design,
     precompute_spectral,
+    quad_remesh,
     release_layer,
     remove_constraint,
     remove_curve_guide,
@@ -71,8 +75,8 @@ from .hatching import build as build_hatching  # noqa: F401  (public scripting A
 from .material import build as build_anisotropic_material  # noqa: F401  (public scripting API)
 
 #: modules registered in this order (unregistered in reverse)
-_MODULES = (properties, guide_properties, operators, guide_operators, background, material, hatching, panels,
-            guide_panels, overlay, tools, handlers, guide_handlers)
+_MODULES = (properties, guide_properties, remesh_properties, operators, guide_operators, background, material,
+            hatching, remesh_operator, panels, guide_panels, remesh_panel, overlay, tools, handlers, guide_handlers)
 _registered: list = []
 
 

@@ -29,7 +29,8 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..core import DirectionConstraint, SingularityConstraint, VectorConstraint, native
-from . import attributes, design, guides, jobs, mesh_read, session_cache
+from ..core import quad_remesh as core_quad_remesh
+from . import attributes, design, guides, jobs, mesh_read, remesh_object, session_cache
 from .choices import (
     CORE_ALIGNMENT,
     INDEX_TOLERANCE,
@@ -50,6 +51,7 @@ __all__ = [
     "commit_region", "cancel_region", "release_layer", "precompute_spectral", "sync", "stale_items",
     "set_feature_alignment", "set_guide_attributes", "add_curve_guide", "remove_curve_guide", "set_mirror_symmetry",
     "set_cuts", "guide_report", "guide_summary", "mirror_design", "comb", "clear_comb",
+    "quad_remesh",
 ]
 
 
@@ -683,6 +685,76 @@ def precompute_spectral(obj, k: int | None = None, progress=None):
     except Exception:
         configure(obj, mode=previous[0], k=previous[1])  # a failed/cancelled basis leaves the settings as they were
         raise
+
+
+# ------------------------------------------------------------------------------------------ quad remeshing
+#: the remesher's quality figures copied onto the new object (custom property ``nfield_remesh``) and reported
+REMESH_INFO_KEYS = ("num_faces", "num_quads", "quad_fraction", "irregular_vertices", "field_singularities",
+                    "alignment_mean_deg", "alignment_p95_deg", "hausdorff_relative", "min_scaled_jacobian",
+                    "inverted_faces", "manifold", "oriented", "edge_length", "seconds")
+
+
+def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | None = None,
+                  pure_quads: bool = False, keep_boundary: bool = True, sharp_angle: float | None = 40.0,
+                  seed: int = 0, cancel_position_singularities: bool = True) -> dict:
+    """Everything a quad remesh of `obj` needs, read in the main thread: the core mesh of its base mesh and
+    its current field (the last solve; NFieldError if it has none: solve first). Options as in
+    nfield.core.quad_remesh (`edge_length` in object units wins over `target_faces`; `sharp_angle` in degrees,
+    None keeps only the boundary). Run it with remesh_from_recipe (any thread), then adopt_remesh."""
+    check_mesh_object(obj)
+    if jobs.busy(obj):
+        raise NFieldError(f"'{obj.name}' is being solved in the background: wait for it to finish or press Esc")
+    _, entry = synced_entry(obj)
+    result = entry.result
+    if result is None:
+        raise NFieldError(f"'{obj.name}' has no field to follow: solve its field first (nfield panel, Solve)")
+    if edge_length is not None:
+        edge_length = float(edge_length)
+        if not math.isfinite(edge_length) or edge_length <= 0:
+            raise NFieldError(f"the edge length must be a positive number of object units, got {edge_length}")
+        target_faces = None
+    elif target_faces is None or int(target_faces) < 1:
+        raise NFieldError(f"the target face count must be at least 1, got {target_faces}")
+    options = {"target_faces": None if target_faces is None else int(target_faces), "edge_length": edge_length,
+               "pure_quads": bool(pure_quads), "keep_boundary": bool(keep_boundary),
+               "sharp_angle": None if sharp_angle is None else float(sharp_angle), "seed": int(seed),
+               "cancel_position_singularities": bool(cancel_position_singularities)}
+    return {"object": obj.name, "mesh": entry.mesh, "field": result, "options": options}
+
+
+def remesh_from_recipe(recipe: dict, progress=None):
+    """In any thread: nfield.core.quad_remesh on the recipe (reads no Blender data; releases the GIL).
+    progress(fraction) returning False cancels (nfield.core.Cancelled). NFieldError for what the remesher
+    refuses (a field that is not a cross, line or vector field, a target it cannot meet)."""
+    try:
+        return core_quad_remesh(recipe["mesh"], recipe["field"], progress=progress, **recipe["options"])
+    except ValueError as exc:
+        raise NFieldError(str(exc)) from None
+
+
+def adopt_remesh(obj, recipe: dict, quad_mesh):
+    """Main thread: the new object from a remesh result (beside `obj`, selected and active). Returns it."""
+    V, faces, stats = quad_mesh
+    if not faces:
+        raise NFieldError(f"the remesh of '{obj.name}' produced no faces: "
+                          + ("; ".join(stats.get("messages", [])) or "try a larger target face count"))
+    info = {k: stats[k] for k in REMESH_INFO_KEYS if k in stats}
+    info["source"] = obj.name
+    info["field_n"] = int(recipe["field"].n)
+    info["seed"] = recipe["options"]["seed"]
+    return remesh_object.create(obj, V, faces, name=f"{obj.name}_quads", info=info)
+
+
+def quad_remesh(obj, *, target_faces: int | None = 5000, edge_length: float | None = None,
+                pure_quads: bool = False, keep_boundary: bool = True, sharp_angle: float | None = 40.0,
+                seed: int = 0, cancel_position_singularities: bool = True, progress=None):
+    """A new quad mesh object beside `obj` whose edges follow its designed field (blocking; `obj` is left
+    as it is). Returns (new object, stats) (stats: nfield.core.quad_remesh's quality figures)."""
+    recipe = remesh_recipe(obj, target_faces=target_faces, edge_length=edge_length, pure_quads=pure_quads,
+                           keep_boundary=keep_boundary, sharp_angle=sharp_angle, seed=seed,
+                           cancel_position_singularities=cancel_position_singularities)
+    qm = remesh_from_recipe(recipe, progress)
+    return adopt_remesh(obj, recipe, qm), qm.stats
 
 
 # ------------------------------------------------------------------------------------------ for the add-on

@@ -261,8 +261,8 @@ def _positive(value: Any, name: str) -> float:
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, keep_boundary: bool = True,
                 sharp_angle: float | None = 40.0, seed: int = 0, iterations: int = 10,
-                relax_iterations: int = 2, strict: bool = False, progress: Callable[[float], Any] | None = None,
-                stats: bool = True) -> QuadMesh:
+                relax_iterations: int = 2, strict: bool = False, cancel_position_singularities: bool = True,
+                progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
     field : FieldResult, DesignSession, or per-face array (see :func:`field_directions`); n = 4 is used as
@@ -278,6 +278,10 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     relax_iterations : smoothing steps (towards face centroids, then back onto the surface) after extraction.
     strict : True refuses (ValueError) a mesh with a component too small for the edge length; False
         leaves such components out and lists them in ``stats["messages"]``.
+    cancel_position_singularities : pair the lattice's row ends (dislocations) with each other, with the
+        field's singularities or with the boundary by a minimum-cost flow on the integer offsets, and
+        re-solve the positions (fewer irregular vertices); ``stats["position_singularities"]`` reports
+        the counts before and after. False keeps the position field as optimised.
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
         releases the GIL, so it can run in a worker thread.
     stats : False skips the quality statistics (only the remesher's own report is returned).
@@ -310,7 +314,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
 
     r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), h, pure_quads=bool(pure_quads),
                              keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle, seed=int(seed),
-                             iterations=int(iterations), relax_iterations=int(relax_iterations), refuse_small_components=bool(strict), progress=progress)
+                             iterations=int(iterations), relax_iterations=int(relax_iterations),
+                             refuse_small_components=bool(strict),
+                             cancel_position_singularities=bool(cancel_position_singularities), progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
     faces = _arrays_to_polygons(np.asarray(r["face_offsets"]), np.asarray(r["face_indices"]))
     seconds = time.perf_counter() - t0
@@ -331,6 +337,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "hierarchy_levels": int(r["num_levels"]),
         "extraction": dict(r["extraction"]),
         "cleanup": dict(r["cleanup"]),
+        "position_singularities": dict(r["position_singularities"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),

@@ -45,7 +45,7 @@ ProjectionTargets make_projection_targets(const RemeshSurface& s, const Features
 }
 
 PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, const HierarchyLevel& L,
-                              double scale, const ProjectionTargets& targets, int max_face_size,
+                              const LatticeOffsets& offsets, double scale, const ProjectionTargets& targets, int max_face_size,
                               ExtractionReport& report, std::vector<char>* feature_kind_out) {
   const int V = s.num_vertices();
   const int E = static_cast<int>(s.edges.size());
@@ -55,9 +55,7 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   std::vector<std::array<int, 2>> unit_edges;
   for (int e = 0; e < E; ++e) {
     const int i = s.edges[e][0], j = s.edges[e][1];
-    const Vec3 q_j = compatible_direction(L.q[i], L.q[j], L.n[j]);
-    const LatticePair pair = closest_lattice_pair(L.v[i], L.n[i], L.q[i], L.p[i], L.v[j], L.n[j], q_j, L.p[j], scale);
-    const Eigen::Vector2i d = pair.index_i - pair.index_j;
+    const Eigen::Vector2i& d = offsets.offset[e];
     const int l1 = std::abs(d[0]) + std::abs(d[1]);
     if (l1 == 0) parent[find(parent, i)] = find(parent, j);
     else if (l1 == 1) unit_edges.push_back({i, j});

@@ -1,11 +1,15 @@
 #include "nfield/remesh/quad_remesher.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 #include "nfield/errors.hpp"
+#include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
+#include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
@@ -28,6 +32,30 @@ std::string format(double x) {
 /// thinner than one quad: area >= 3 s^2 and bounding-box diagonal >= 2 s.
 /// Largest lattice (about the output face count) accepted: 2 million faces need about 2 GB on the way.
 constexpr double kMaxLatticePoints = 2e6;
+
+/// Euler characteristic V - E + F of a polygon mesh (vertices used by a face only).
+long long euler_characteristic(const PolygonMesh& m) {
+  std::vector<char> used(m.num_vertices(), 0);
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(m.indices.size());
+  for (int f = 0; f < m.num_faces(); ++f) {
+    const int* v = m.face(f);
+    const int k = m.face_size(f);
+    for (int i = 0; i < k; ++i) {
+      used[v[i]] = 1;
+      edges.emplace_back(std::min(v[i], v[(i + 1) % k]), std::max(v[i], v[(i + 1) % k]));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  const long long E = std::unique(edges.begin(), edges.end()) - edges.begin();
+  return std::count(used.begin(), used.end(), 1) - E + m.num_faces();
+}
+
+/// Euler characteristic of the triangulated surface the remesher works on.
+long long euler_characteristic(const RemeshSurface& s) {
+  return static_cast<long long>(s.num_vertices()) - static_cast<long long>(s.edges.size()) +
+         static_cast<long long>(s.triangles.size());
+}
 
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
 
@@ -159,11 +187,65 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   optimise_positions(levels, po, [&](double f) { return !progress || progress(0.15 + 0.7 * f); });
   result.seconds_positions = seconds_since(t0);
 
-  // 5. Extraction.
+  // 5. Integer offsets; position singularities cancelled by a minimum-cost flow, positions re-solved.
+  t0 = std::chrono::steady_clock::now();
+  LatticeOffsets offsets = compute_lattice_offsets(surface, levels[0], s);
+  const LatticeOffsets before = offsets;
+  const std::vector<Vec3> optimised_p = levels[0].p;
+  bool flow_applied = false;
+  if (options.cancel_position_singularities) {
+    const auto face_edges = triangle_edges(surface);
+    const CancellationReport c = cancel_position_singularities(surface, levels[0], face_edges, features.edge_is_feature,
+                                                               s, offsets, {}, [&]() { return progress && !progress(0.86); });
+    report(0.86);
+    result.cancellation = c;
+    result.seconds_flow = seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    if (c.changed_offsets > 0) {
+      const std::vector<Vec3>& old_p = optimised_p;
+      if (resolve_positions(surface, levels[0], offsets, s)) {
+        result.moved_representatives = normalize_representatives(surface, levels[0], offsets, s);
+        flow_applied = true;
+      } else {
+        // The re-solve is a least-squares problem on the changed offsets; when it fails (singular system)
+        // the optimised positions and their own offsets are still a valid input to the extraction.
+        levels[0].p = old_p;
+        offsets = before;
+        result.messages.push_back("the position re-solve failed: position singularities were left as they were");
+      }
+    }
+    result.seconds_resolve = seconds_since(t0);
+  } else {
+    result.seconds_flow = seconds_since(t0);
+  }
+
+  // 6. Extraction.
   t0 = std::chrono::steady_clock::now();
   const ProjectionTargets targets = make_projection_targets(surface, features);
-  result.mesh = extract_quad_mesh(surface, features, levels[0], s, targets, options.max_face_size, result.extraction,
-                                  &result.vertex_feature_kind);
+  result.mesh = extract_quad_mesh(surface, features, levels[0], offsets, s, targets, options.max_face_size,
+                                  result.extraction, &result.vertex_feature_kind);
+  const long long surface_chi = euler_characteristic(surface);
+  if (flow_applied && euler_characteristic(result.mesh) != surface_chi) {
+    // The changed offsets can pinch a thin part (an arm, a finger) at a coarse lattice, which changes the
+    // output's topology; the lattice as optimised, without the flow, is tried instead and kept when its
+    // topology is closer to the input's.
+    ExtractionReport plain_report;
+    std::vector<char> plain_kind;
+    HierarchyLevel plain = levels[0];
+    plain.p = optimised_p;
+    PolygonMesh plain_mesh = extract_quad_mesh(surface, features, plain, before, s, targets, options.max_face_size,
+                                               plain_report, &plain_kind);
+    if (std::llabs(euler_characteristic(plain_mesh) - surface_chi) <
+        std::llabs(euler_characteristic(result.mesh) - surface_chi)) {
+      result.mesh = std::move(plain_mesh);
+      result.vertex_feature_kind = std::move(plain_kind);
+      result.extraction = plain_report;
+      result.messages.push_back("cancelling the row ends changed the topology of the output (a thin part was "
+                                "pinched): extracted without it");
+      result.cancellation.position_singularities_after = result.cancellation.position_singularities_before;
+      result.cancellation.changed_offsets = 0;
+    }
+  }
   const CleanupReport cleanup = clean_up_quads(result.mesh, result.vertex_feature_kind);
   result.cleanup_doublets = cleanup.doublets;
   result.cleanup_triangle_pairs = cleanup.triangle_pairs + cleanup.triangle_pentagon_pairs;
@@ -172,7 +254,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   report(0.95);
 
-  // 6. Pure quads.
+  // 7. Pure quads.
   if (options.pure_quads) {
     std::vector<int> kind;
     std::vector<std::array<int, 2>> edge_of;

@@ -1,9 +1,9 @@
 // Extraction of a quad-dominant mesh from an optimised position field (Jakob et al. 2015, section 6, in
 // our own simplified form).
 //
-//  1. Every surface edge ij compares the lattice points of i and j (closest_lattice_pair). Their integer
-//     offset D = index_i - index_j says how p_j sits relative to p_i in lattice steps: D = 0, same output
-//     vertex; |D|_1 = 1, neighbouring output vertices; anything else, no relation (diagonals, jumps).
+//  1. Every surface edge ij carries the integer offset D_ij of the lattice point of j from that of i
+//     (lattice_offsets.hpp; after the position singularities were cancelled). D = 0: the same output
+//     vertex; |D|_1 = 1: neighbouring output vertices; anything else: no relation (diagonals, jumps).
 //  2. Vertices joined by D = 0 edges form clusters (union-find): the output vertices, at the area-weighted
 //     mean of their members' lattice points. Clusters joined by a D = 1 edge are linked; links shorter
 //     than a quarter of the spacing merge their clusters (two copies of one lattice point).
@@ -20,6 +20,7 @@
 #pragma once
 #include <vector>
 
+#include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/polygon_mesh.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
@@ -47,10 +48,11 @@ struct ProjectionTargets {
 };
 ProjectionTargets make_projection_targets(const RemeshSurface& surface, const Features& features);
 
-/// `level0` is levels[0] after optimise_positions (one entry per surface vertex). `feature_kind_out`
-/// (optional) receives the FeatureKind of each output vertex.
+/// `level0` is levels[0] after optimise_positions (one entry per surface vertex; its lattice points p give
+/// the output positions), `offsets` the integer offsets of its edges. `feature_kind_out` (optional)
+/// receives the FeatureKind of each output vertex.
 PolygonMesh extract_quad_mesh(const RemeshSurface& surface, const Features& features, const HierarchyLevel& level0,
-                              double scale, const ProjectionTargets& targets, int max_face_size,
+                              const LatticeOffsets& offsets, double scale, const ProjectionTargets& targets, int max_face_size,
                               ExtractionReport& report, std::vector<char>* feature_kind_out = nullptr);
 
 /// Moves each vertex onto the input: feature vertices (corner or curve) onto the nearest feature edge,

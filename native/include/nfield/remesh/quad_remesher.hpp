@@ -19,6 +19,7 @@
 #include "nfield/mesh.hpp"
 #include "nfield/remesh/polygon_mesh.hpp"
 #include "nfield/remesh/position_field.hpp"
+#include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 
 namespace nfield::remesh {
@@ -33,6 +34,7 @@ struct QuadRemeshOptions {
   int max_face_size = 12;            ///< larger extracted faces are dropped
   int relax_iterations = 2;          ///< relaxation steps after extraction (and after subdivision)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
+  bool cancel_position_singularities = true;  ///< min-cost flow on the integer offsets (position_singularities.hpp)
 };
 
 struct QuadRemeshResult {
@@ -46,7 +48,10 @@ struct QuadRemeshResult {
   double lattice_spacing = 0;
   ExtractionReport extraction;
   int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
-  double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_extraction = 0;
+  CancellationReport cancellation;        ///< position singularities before / after the flow
+  int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
+  double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
+         seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
 };
 
 /// `triangle_directions`: one 3D tangent direction of the cross field per face of `mesh` (any of the four;
