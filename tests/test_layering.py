@@ -15,6 +15,11 @@ import ast
 import re
 from pathlib import Path
 
+import pytest
+
+# Reads sources and docs/architecture.md, runs no native code: left out of the sanitizer job (whose copy of
+# tests/ has no docs beside it).
+pytestmark = pytest.mark.no_sanitizer
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "addon" / "nfield" / "blender"
 CORE = ROOT / "addon" / "nfield" / "core"
