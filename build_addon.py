@@ -397,8 +397,9 @@ def build(python: str | None = None, debug: bool = False, sanitize: bool = False
     build_cmd = [cmake, "--build", build_dir]
     if generator != "Ninja":
         build_cmd += ["--parallel", str(os.cpu_count() or 2)]
+    # ccache hashes paths relative to the checkout, so clones and worktrees share one cache.
     try:
-        run(build_cmd)
+        run(build_cmd, env=dict(os.environ, CCACHE_BASEDIR=str(ROOT)))
     except Failure:
         stamp.unlink(missing_ok=True)  # reconfigure next time, in case the configuration was the problem
         raise
