@@ -54,7 +54,7 @@ APT_PACKAGES = [
 #   Blender 4.2 LTS, 4.5 LTS, 5.0: CPython 3.11, numpy 1.x;  Blender 5.1, 5.2 LTS: CPython 3.13, numpy 2.
 # A compiled module is built for each Python version that has a `builds` environment; the extension zip
 # carries all of them side by side (Python imports the one whose ABI tag matches it).
-TEST_REQUIREMENTS = ("pytest>=7", "hypothesis")
+TEST_REQUIREMENTS = ("pytest>=7", "pytest-xdist", "hypothesis")
 
 
 @dataclass(frozen=True)
@@ -542,8 +542,11 @@ def cmd_quick_test(pytest_args: list[str]) -> int:
     if (module.parent / "CTestTestfile.cmake").exists():
         legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", module.parent, "--output-on-failure"],
                                                    check=False).returncode == 0, "ctest"))
+    # One pytest worker per core (pytest-xdist): the suite is hundreds of short, independent tests.
+    workers = ["-n", str(min(os.cpu_count() or 1, 4))]
     legs.run("core suite without slow tests, Python %s" % MAIN_ENV.version,
-             lambda: run_pytest(VENV_PY, ["tests", "-q", "-m", "not blender and not gui and not slow", *pytest_args]))
+             lambda: run_pytest(VENV_PY, ["tests", "-q", *workers, "-m", "not blender and not gui and not slow",
+                                          *pytest_args]))
     return 0 if legs.summary() else 1
 
 

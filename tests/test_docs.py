@@ -50,12 +50,19 @@ PYTHON_SKIPS = {
 }
 
 
+#: blocks that run for seconds, recognised by a text they contain: marked `slow` (left out of `test --quick`;
+#: the remesher's own tests cover the same code quickly)
+SLOW_BLOCK_MARKERS = ("quad_remesh(", "nfield remesh ")
+
+
 def _blocks():
     for path in DOCS:
         text = path.read_text(encoding="utf-8")
         for m in FENCE.finditer(text):
             line = text.count("\n", 0, m.start()) + 1
-            yield pytest.param(path, line, m.group(1), m.group(2), id=f"{path.relative_to(ROOT)}:{line}")
+            slow = any(marker in m.group(2) for marker in SLOW_BLOCK_MARKERS)
+            yield pytest.param(path, line, m.group(1), m.group(2), id=f"{path.relative_to(ROOT)}:{line}",
+                               marks=[pytest.mark.slow] if slow else [])
 
 
 def _has_native() -> bool:
