@@ -54,6 +54,27 @@ def core_mesh(name: str):
     return Mesh.from_file(path)
 
 
+def mesh_from_arrays(VF):
+    """nfield.core.Mesh of a generated mesh given as (V, F) arrays (tests/meshgen.py)."""
+    import numpy as np
+    from nfield.core import Mesh
+
+    V, F = VF
+    return Mesh(np.asarray(V, float), np.asarray(F, np.int64))
+
+
+def has_native() -> bool:
+    """True when the compiled module nfield._native imports."""
+    try:
+        import nfield._native  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+needs_native = pytest.mark.skipif(not has_native(), reason="compiled module nfield._native is not built")
+
+
 def run_beside_main_loop(work) -> dict:
     """Runs work() in a thread named "solver" while this thread loops, sleeping 1 ms per iteration (each
     wake-up needs the GIL). Returns {"result" or "error", "seconds" (of work), "count" (iterations),

@@ -175,14 +175,7 @@ def _sphere_ring_vectors(vertex=0):
     """Vector constraints on every face around `vertex` of _sphere(), tangent, not a rotation of each other
     by the ring's transport, plus (added by the case) a singularity there: contradictory."""
     V, F = _sphere()
-    out = []
-    faces = [f for f in range(len(F)) if vertex in F[f]]
-    for f in faces:
-        a, b, c = V[F[f]]
-        nrm = np.cross(b - a, c - a)
-        nrm /= np.linalg.norm(nrm)
-        out.append({"face": int(f), "vector": np.cross(nrm, [0.3, 0.5, 0.7]).tolist()})
-    return out
+    return [{"face": int(f), "vector": _tangent(V, F, f)} for f in range(len(F)) if vertex in F[f]]
 
 
 def _bent_strip():
@@ -195,13 +188,7 @@ def _bent_strip():
 
 def _all_faces_vectors():
     V, F = _sphere()
-    out = []
-    for f in range(len(F)):
-        a, b, c = V[F[f]]
-        nrm = np.cross(b - a, c - a)
-        nrm /= np.linalg.norm(nrm)
-        out.append({"face": int(f), "vector": np.cross(nrm, [0.3, 0.5, 0.7]).tolist()})
-    return out
+    return [{"face": int(f), "vector": _tangent(V, F, f)} for f in range(len(F))]
 
 
 def _neighbour_opposite():
@@ -210,6 +197,7 @@ def _neighbour_opposite():
 
 
 def _tangent(V, F, f, d=(0.3, 0.5, 0.7)):
+    """normal(f) x d: a tangent vector of face f (as a list)."""
     a, b, c = V[F[f]]
     nrm = np.cross(b - a, c - a)
     nrm /= np.linalg.norm(nrm)

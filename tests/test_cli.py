@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import needs_native
 
 ROOT = Path(__file__).resolve().parent.parent
 ADDON = ROOT / "addon"
@@ -30,15 +31,6 @@ if str(ADDON) not in sys.path:
     sys.path.insert(0, str(ADDON))
 
 
-def _has_native() -> bool:
-    try:
-        import nfield._native  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-needs_native = pytest.mark.skipif(not _has_native(), reason="compiled module nfield._native is not built")
 
 
 # ---------------------------------------------------------------------------------------- helpers

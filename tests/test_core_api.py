@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import has_native, needs_native
 
 ROOT = Path(__file__).resolve().parent.parent
 ADDON = ROOT / "addon"
@@ -35,15 +36,6 @@ from nfield.core import (  # noqa: E402
 )
 
 
-def _has_native() -> bool:
-    try:
-        import nfield._native  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-needs_native = pytest.mark.skipif(not _has_native(), reason="compiled module nfield._native is not built")
 
 SPHERE = DATA / "sphere.obj"
 
@@ -227,7 +219,7 @@ def test_polygon_obj_rows_per_polygon(tmp_path):
 # ---------------------------------------------------------------------------------------- solve
 @pytest.fixture(scope="module")
 def sphere():
-    if not _has_native():
+    if not has_native():
         pytest.skip("compiled module nfield._native is not built")
     return Mesh.from_file(SPHERE)
 

@@ -9,28 +9,16 @@ double-precision angle operations is < 1e-13, so 1e-9 is a safe bound that any w
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import meshgen as mg
+from conftest import core_mesh, mesh_from_arrays
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 
-DATA = Path(__file__).parent / "data"
-
-
-def _data_mesh(name):
-    p = DATA / name
-    if not p.exists():
-        pytest.skip(f"test mesh {p} is missing (tests/data not populated)")
-    return core.Mesh.from_file(p)
-
-
-def _mesh(VF):
-    return core.Mesh(np.asarray(VF[0], float), np.asarray(VF[1], np.int64))
 
 
 def _reference_indices(mesh_native, ops, z):
@@ -89,7 +77,7 @@ SYNTHETIC = {
 def test_poincare_hopf_synthetic(name, n):
     """Indices of the smoothest n-field sum to chi (discrete Poincare-Hopf) and are multiples of 1/n."""
     make, chi = SYNTHETIC[name]
-    mesh = _mesh(make())
+    mesh = mesh_from_arrays(make())
     res = core.smoothest_field(mesh, n)
     _check_indices(mesh, res, chi, n)
     if chi != 0:
@@ -99,7 +87,7 @@ def test_poincare_hopf_synthetic(name, n):
 @pytest.mark.parametrize("fname,chi,ns", [("eight.off", -2, (1, 2, 4)), ("fertility.off", -6, (4,)),
                                           ("sphere.obj", 2, (1, 2, 4))])
 def test_poincare_hopf_data(fname, chi, ns):
-    mesh = _data_mesh(fname)
+    mesh = core_mesh(fname)
     assert mesh.report["euler_characteristic"] == chi
     for n in ns:
         t = time.perf_counter()
@@ -115,8 +103,8 @@ def test_indices_frame_invariant():
     V, F = mg.irregular_ellipsoid(n_points=500, seed=1)
     Fr = mg.cyclic_rotate_faces(F, seed=3)
     for n in (1, 2, 4):
-        a = sorted(core.smoothest_field(_mesh((V, F)), n).singularities)
-        b = sorted(core.smoothest_field(_mesh((V, Fr)), n).singularities)
+        a = sorted(core.smoothest_field(mesh_from_arrays((V, F)), n).singularities)
+        b = sorted(core.smoothest_field(mesh_from_arrays((V, Fr)), n).singularities)
         assert len(a) > 0
         assert [v for v, _ in a] == [v for v, _ in b]
         assert np.allclose([i for _, i in a], [i for _, i in b], atol=1e-12)
@@ -130,7 +118,7 @@ def test_index_of_constructed_fields():
     field turns fast there), and no vertex away from the poles is singular."""
     V, F = mg.icosphere(3)
     Rx = np.array([[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]])
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     c = mg.face_centroids(V, F)
     axis = Rx @ np.array([0.0, 0.0, 1.0])
     fields = {"rotation": np.cross(axis, c), "gradient": axis - (c @ axis)[:, None] * c}
@@ -174,7 +162,7 @@ def test_pinned_singularity_has_requested_index(name, n, q, order):
     that index there (constraint (10) corrected for the ring holonomy); the ring vectors all have the
     same magnitude (paper section 5: the constraints only rotate); Poincare-Hopf still holds."""
     make, chi = PIN_MESHES[name]
-    mesh = _mesh(make())
+    mesh = mesh_from_arrays(make())
     v, k = _pick_vertex(mesh, seed=q + 10 * n)
     res = core.solve(mesh, n=n, order=order, singularities=[core.SingularityConstraint(v, q / n)])
     got = dict(res.singularities)
@@ -197,7 +185,7 @@ def test_pinned_singularity_has_requested_index(name, n, q, order):
 @pytest.mark.parametrize("n", [1, 2, 4])
 def test_two_pinned_singularities_biharmonic(n):
     """Two pinned singularities (+1/n and -1/n) on the torus: both present with their indices."""
-    mesh = _mesh(mg.torus(2.0, 0.7, 40, 14))
+    mesh = mesh_from_arrays(mg.torus(2.0, 0.7, 40, 14))
     v1, _ = _pick_vertex(mesh, seed=1)
     v2, _ = _pick_vertex(mesh, seed=2)
     assert v1 != v2
@@ -212,7 +200,7 @@ def test_out_of_range_index_rejected(n):
     """|q/n - K/(2 pi)| >= k/(2n) cannot be carried by a ring of k faces (|delta| >= pi): ValueError
     naming the vertex, from the native solver and from nfield.core.solve. Just inside the range
     (largest admissible q) is accepted."""
-    mesh = _mesh(mg.icosphere(3))
+    mesh = mesh_from_arrays(mg.icosphere(3))
     v, k = _pick_vertex(mesh, seed=5)
     K = mesh.native.angle_defect(v)
     ops = nat.FieldOperators(mesh.native, n, "geometric")
@@ -236,7 +224,7 @@ def test_out_of_range_index_rejected(n):
 
 def test_boundary_vertex_rejected():
     """Boundary vertices carry no index: ValueError naming the vertex."""
-    mesh = _mesh(mg.cylinder(1.0, 2.0, 16, 8))
+    mesh = mesh_from_arrays(mg.cylinder(1.0, 2.0, 16, 8))
     v = next(v for v in range(mesh.num_vertices) if not mesh.native.vertex_is_interior(v))
     ops = nat.FieldOperators(mesh.native, 2, "geometric")
     solver = nat.ExactSolver(ops, 2, 1.0, None, "direction")
@@ -247,7 +235,7 @@ def test_boundary_vertex_rejected():
 
 
 def test_index_not_multiple_of_one_over_n_rejected():
-    mesh = _mesh(mg.icosphere(2))
+    mesh = mesh_from_arrays(mg.icosphere(2))
     v, _ = _pick_vertex(mesh)
     with pytest.raises(ValueError, match=str(v)):
         core.solve(mesh, n=4, order=2, singularities=[core.SingularityConstraint(v, 0.3)])
@@ -296,7 +284,7 @@ def test_fig1_geometric_weights_give_symmetric_layout(seed):
     abc = np.array([1.6, 1.0, 0.6])
     V, F = mg.irregular_ellipsoid(*abc, n_points=3000, seed=seed, twist=1.0)
     h = mg.mean_edge_length(V, F)
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     out = {}
     for weights in ("geometric", "combinatorial"):
         res = core.smoothest_field(mesh, 2, weights=weights)

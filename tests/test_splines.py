@@ -20,36 +20,22 @@ Dense references: the KKT system is solved in double and refined with residuals 
 """
 from __future__ import annotations
 
-import functools
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import meshgen as mg
+from conftest import core_mesh, mesh_from_arrays
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 
-DATA = Path(__file__).parent / "data"
 SPIKE = 100.0  # s_f = SPIKE * s_0 * mean area / A_f (spline_solver.hpp)
 # Dense comparison (relative L2): the native result and the refined reference are both accurate far beyond
 # kappa eps (n-vector splines measured 1e-16 to 1e-10 at orders 1-4, the worst on the flat grid at order 4,
 # cond(E_ff) = 3e10); 1e-8 is the issue's target and leaves orders of margin.
 DENSE_TOL = 1e-8
-
-
-@functools.lru_cache(maxsize=None)
-def _data_mesh(name):
-    p = DATA / name
-    if not p.exists():
-        pytest.skip(f"test mesh {p} is missing (tests/data not populated)")
-    return core.Mesh.from_file(p)
-
-
-def _mesh(VF):
-    return core.Mesh(np.asarray(VF[0], float), np.asarray(VF[1], np.int64))
 
 
 def _random_tangent_constraints(mesh, k, seed):
@@ -74,7 +60,7 @@ def test_direction_constraints_exact_and_positive(name, order):
     representation space is < 1e-10 (|<w, J d>| / |w| after normalising d; the constraint row is
     solved by a dense LDLT of the Schur complement, so it holds to rounding, ~1e-13 relative),
     w_f points along +d (<w_f, d_f> > 0), and one of the n output directions is the projected d."""
-    mesh = _data_mesh(name)
+    mesh = core_mesh(name)
     faces, dirs = _random_tangent_constraints(mesh, 20, seed=order)
     cons = [core.DirectionConstraint(int(f), tuple(d)) for f, d in zip(faces, dirs)]
     report = []
@@ -101,7 +87,7 @@ def test_direction_constraints_exact_and_positive(name, order):
 def test_vector_constraints_exact(order):
     """n-vector spline (eq. 11): w_f = d_f exactly at vector-constrained faces: the one-shot solver
     substitutes them (bit-identical copies)."""
-    mesh = _mesh(mg.bumpy_sphere(3, amplitude=0.2, seed=4))
+    mesh = mesh_from_arrays(mg.bumpy_sphere(3, amplitude=0.2, seed=4))
     faces, dirs = _random_tangent_constraints(mesh, 15, seed=5)
     lengths = np.linspace(0.5, 3.0, 15)
     vecs = dirs * lengths[:, None]
@@ -228,7 +214,7 @@ def test_vector_spline_matches_dense_kkt(name, order, n):
     solution to 1e-8 (DENSE_TOL). A live solver without anchors refactors itself once its vector constraints
     are known (lambda = 0 needs them substituted); given the anchors it factors once."""
     V, F = SMALL[name]()
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     ops = nat.FieldOperators(mesh.native, n, "geometric")
     nF = len(F)
     X = _user_field(V, F)
@@ -298,7 +284,7 @@ def test_vector_spline_developable_meshes(name, order, n):
     to 1e10 (order 4) on grid20, which the extended-precision refinement of both sides absorbs (without it
     the error would be ~kappa eps, 1e-6 at order 4). grid60 (7,000 faces) is too large for the dense solve."""
     V, F = DEVELOPABLE[name]()
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     faces, dirs = _random_tangent_constraints(mesh, 5, seed=order + 3 * n)
     res = core.solve(mesh, n=n, order=order, vector_constraints=[
         core.VectorConstraint(int(f), tuple(v)) for f, v in zip(faces, dirs)])
@@ -332,7 +318,7 @@ def test_direction_spline_matches_dense_kkt(name, order, n):
     max(1e-8, 1e-2 cond(V) eps): 1e-8 wherever cond(V) < 4.5e9 (orders 1-2 here; orders 3-4 reach cond(V)
     1e9-1e15 on these meshes)."""
     V, F = SMALL[name]()
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     ops = nat.FieldOperators(mesh.native, n, "geometric")
     nF = len(F)
     X = _user_field(V, F)
@@ -408,7 +394,7 @@ def test_first_order_optimality(name, order):
     from conftest import stationarity_residual
 
     V, F = OPTIMALITY_MESHES[name]()
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     nF = len(F)
     X = _user_field(V, F)
     faces, dirs = _random_tangent_constraints(mesh, 8, seed=order)
@@ -491,7 +477,7 @@ def test_fig10_biharmonic_continues_rate_of_change():
     """
     n = 4
     V, F = mg.icosphere(4)
-    mesh = _mesh((V, F))
+    mesh = mesh_from_arrays((V, F))
     ops = nat.FieldOperators(mesh.native, n, "geometric")
     c = mg.face_centroids(V, F)
     th, e_th, e_ph = _sphere_frame(c)
@@ -597,7 +583,7 @@ def test_fig2_point_constraints_converge_only_biharmonic():
     probes = probes[far][:40]
     vals = {1: [], 2: []}
     for V, F in levels:
-        mesh = _mesh((V, F))
+        mesh = mesh_from_arrays((V, F))
         ops = nat.FieldOperators(mesh.native, 1, "geometric")
         cf = mg.closest_faces(V, F, cpts)
         for order in (1, 2):
@@ -642,7 +628,7 @@ def test_strength_same_on_scaled_mesh():
     order 1, 2, with two direction constraints) is identical (1e-6 rad: rounding amplified by the
     conditioning of V)."""
     V, F = _ellipsoid_level(3)
-    m1, m2 = _mesh((V, F)), _mesh((1000 * V, F))
+    m1, m2 = mesh_from_arrays((V, F)), mesh_from_arrays((1000 * V, F))
     cons = [core.DirectionConstraint(5, (1, 0, 0)), core.DirectionConstraint(700, (0, 1, 0))]
     for n in (2, 4):
         for order in (1, 2):
@@ -682,7 +668,7 @@ def test_strength_same_under_refinement():
     dirs = {}
     for k, strengths in ((3, (16.0, 64.0)), (4, (4.0, 16.0, 64.0, 256.0))):
         V, F = _ellipsoid_level(k)
-        mesh = _mesh((V, F))
+        mesh = mesh_from_arrays((V, F))
         X = _rough_user_field(V, F)
         for strength in strengths:
             res = core.solve(mesh, n=n, order=2, align="field", alignment_field=X, strength=strength)

@@ -91,4 +91,18 @@ inline double max_residual(const ComplexSparse& S, const Eigen::VectorXd& mass, 
   return worst;
 }
 
+/// The cross-field (n = 4) pencil (S, M) of a bumpy torus with its dense reference spectrum: the common
+/// problem of the eigen-solver tests. `N` unknowns, `norm_a` = max |lambda| (the scale of rounding errors).
+struct TorusPencil {
+  TorusPencil(int a, int b, unsigned seed) : mesh(bumpy_torus(a, b, seed)), ops(mesh, 4) {}
+
+  std::shared_ptr<TriangleMesh> mesh;
+  FieldOperators ops;
+  const ComplexSparse& S = ops.harmonic_matrix();
+  const Eigen::VectorXd& mass = ops.mass();
+  Eigen::VectorXd values = reference_eigenvalues(S, mass);
+  int N = ops.num_unknowns();
+  double norm_a = values.cwiseAbs().maxCoeff();
+};
+
 }  // namespace nfield::test

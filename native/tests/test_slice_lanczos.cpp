@@ -28,15 +28,9 @@ namespace {
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kTol = 1e-10;
 
-struct Problem {
-  std::shared_ptr<TriangleMesh> mesh = bumpy_torus(16, 20, 9);  // 640 faces
-  FieldOperators ops{mesh, 4};
-  const ComplexSparse& S = ops.harmonic_matrix();
-  const Eigen::VectorXd& mass = ops.mass();
+struct Problem : TorusPencil {
+  Problem() : TorusPencil(16, 20, 9) {}  // 640 faces
   Eigen::VectorXd d = mass.cwiseSqrt();
-  Eigen::VectorXd values = reference_eigenvalues(S, mass);
-  int N = ops.num_unknowns();
-  double norm_a = values.cwiseAbs().maxCoeff();
 
   double norm_shifted(double sigma) const {  // ||S - sigma M||_2
     const Eigen::MatrixXcd K = Eigen::MatrixXcd(S) - Eigen::MatrixXcd(mass.cast<Complex>().asDiagonal()) * sigma;

@@ -32,14 +32,8 @@ namespace {
 constexpr double kEps = std::numeric_limits<double>::epsilon();
 constexpr double kTol = 1e-10;
 
-struct Problem {
-  std::shared_ptr<TriangleMesh> mesh = bumpy_torus(18, 25, 13);  // 900 faces
-  FieldOperators ops{mesh, 4};
-  const ComplexSparse& S = ops.harmonic_matrix();
-  const Eigen::VectorXd& mass = ops.mass();
-  Eigen::VectorXd values = reference_eigenvalues(S, mass);
-  int N = ops.num_unknowns();
-  double norm_a = values.cwiseAbs().maxCoeff();
+struct Problem : TorusPencil {
+  Problem() : TorusPencil(18, 25, 13) {}  // 900 faces
   double norm_s = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(Eigen::MatrixXcd(S), Eigen::EigenvaluesOnly)
                       .eigenvalues()
                       .cwiseAbs()
