@@ -27,7 +27,7 @@ LIVE_MAX_REGION_FRACTION = 0.25
 
 
 @dataclass
-class GlobalRecord:
+class BaseRecord:
     """What the last global exact solve used and found: the base for live local solves."""
 
     key: tuple               # everything but the guide field: a live solve needs the same operators and settings
@@ -40,7 +40,7 @@ class SessionLive:
     """Mixin of DesignSession (state lives on the session)."""
 
     def _init_live(self) -> None:
-        self._global_record: GlobalRecord | None = None
+        self._base_record: BaseRecord | None = None
         self._live_solver = None
         self._live_key = None
         self._live_in_solver: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
@@ -50,27 +50,37 @@ class SessionLive:
         s = self._settings
         return (self._ops_token, s["order"], s["strength"], inputs.kind, inputs.frozen_key)
 
-    def _remember_global(self, inputs, raw: np.ndarray) -> None:
+    def _remember_base(self, inputs, raw: np.ndarray, live: bool = False) -> None:
+        """Record a solve as the base of the next live edit: a global one, or a live one (then the global
+        solve stays due)."""
         T = self.mesh.num_triangles
         value = np.zeros(T, dtype=np.complex128) if inputs.alignment is None else np.asarray(inputs.alignment)
         weight = np.ones(T) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)
-        self._global_record = GlobalRecord(self._record_key(inputs), value.copy(), weight.copy(), raw.copy())
-        self._global_due = False
+        self._base_record = BaseRecord(self._record_key(inputs), value.copy(), weight.copy(), raw.copy())
+        self._global_due = live
+
+    def _live_base_ready(self, inputs) -> bool:
+        """A live solve can start from the last solve: one was recorded for the same operators and settings,
+        and no region edit is in progress."""
+        rec = self._base_record
+        return rec is not None and self._region is None and rec.key == self._record_key(inputs)
 
     def _live_region(self, inputs) -> np.ndarray | None:
         """Triangles to re-solve for a live edit, or None when the edit should be solved globally (no global
         solve to start from, other settings, a region edit in progress, only targets changed, or too many
         faces changed)."""
-        rec = self._global_record
-        if rec is None or self._region is not None or rec.key != self._record_key(inputs):
+        rec = self._base_record
+        if not self._live_base_ready(inputs):
             return None
         T = self.mesh.num_triangles
         value = np.zeros(T, dtype=np.complex128) if inputs.alignment is None else np.asarray(inputs.alignment)
         weight = np.ones(T) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)
         weight_changed = weight != rec.weight
-        if not weight_changed.any():
+        if not weight_changed.any() and not self._global_due:
             return None  # the global factorization still holds: a right-hand-side update is cheaper
         changed = np.flatnonzero(weight_changed | (value != rec.value))
+        if not changed.size:
+            return None
         nm = self._solve_native_mesh()
         rings = 2 * self._settings["order"] + LIVE_MARGIN_EXTRA_RINGS
         region = _grow(nm, changed, rings)
@@ -94,7 +104,7 @@ class SessionLive:
         from ._loader import native
 
         s = self._settings
-        rec = self._global_record
+        rec = self._base_record
         active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
         free = np.zeros(self.mesh.num_triangles, dtype=bool)
         free[region] = True
