@@ -402,6 +402,73 @@ def test_curve_sources_are_read_in_the_mesh_space(scene):
     assert np.allclose(lines[0] * 2.0 + [1, 0, 0], pts[:3]) and np.allclose(lines[1] * 2.0 + [1, 0, 0], pts[4:])
 
 
+def _grease_pencil(name, strokes, layer_offset, frame=1):
+    """A Grease Pencil object of this Blender (legacy GPENCIL up to 4.2, GREASEPENCIL from 4.3) whose layer
+    "guides" is moved by `layer_offset` and holds `strokes` (lists of points) at `frame`; a hidden layer
+    holds a stroke far away. Returns (object, kind) or (None, reason)."""
+    data = getattr(bpy.data, "grease_pencils_v3", None) or getattr(bpy.data, "grease_pencils", None)
+    if data is None:
+        return None, f"Blender {bpy.app.version_string} has no Grease Pencil data"
+    gp = data.new(name)
+    ob = bpy.data.objects.new(name, gp)
+    bpy.context.collection.objects.link(ob)
+    for layer_name, lines, hidden in (("guides", strokes, False), ("hidden", [[(9, 9, 9), (9, 8, 9)]], True)):
+        layer = gp.layers.new(layer_name)
+        fr = layer.frames.new(frame)
+        if ob.type == "GREASEPENCIL":
+            drawing = fr.drawing
+            drawing.add_strokes([len(p) for p in lines])
+            drawing.attributes["position"].data.foreach_set("vector", np.concatenate(lines).astype(np.float32).ravel())
+            layer.translation = layer_offset
+        else:
+            for pts in lines:
+                stroke = fr.strokes.new()
+                stroke.points.add(len(pts))
+                stroke.points.foreach_set("co", np.asarray(pts, dtype=np.float32).ravel())
+            layer.location = layer_offset
+        layer.hide = hidden
+    return ob, ob.type
+
+
+def test_grease_pencil_strokes_are_curve_guides(scene):
+    """A Grease Pencil object (this Blender's kind) is a curve source: its visible strokes at the current
+    frame, with the object's and the layer's transform, in the mesh's object space; as a hard guide on a flat
+    grid the faces the stroke crosses point along it (1 degree, as for curve objects)."""
+    nf = scene
+    api = _api(nf)
+    reader = blender_module(nf, "guides")
+    V, F = meshgen.grid(25, 25)
+    obj = object_from_arrays("gp_plate", V, F)
+    obj.nfield.live_update = False
+    obj.location = (1.0, 0.0, 0.0)
+    obj.scale = (2.0, 2.0, 2.0)
+    start, d = np.array([0.2, 0.3, 0.0]), np.array([1.0, 0.45, 0.0])
+    # in the plate's space the stroke runs start + t d; in world space that is 2 (start + t d) + (1, 0, 0); the
+    # GP object sits at (1, 0, 0) and its layer is moved by (0, 0.5, 0): the stored points are 2 (start + t d)
+    # - (0, 0.5, 0)
+    inside = [start + t * d for t in np.linspace(0, 0.8, 9)]
+    stored = [2.0 * p - np.array([0.0, 0.5, 0.0]) for p in inside]
+    gp, kind = _grease_pencil("gp_guide", [stored, stored[:1]], (0.0, 0.5, 0.0))  # a one-point stroke: skipped
+    if gp is None:
+        print(f"SKIP: {kind}")
+        pytest.skip(kind)
+    print(f"Blender {bpy.app.version_string}: Grease Pencil object type {kind}")
+    gp.location = (1.0, 0.0, 0.0)
+    bpy.context.scene.frame_set(1)
+    bpy.context.view_layer.update()
+    (line,) = reader.curve_polylines(gp, obj)  # the hidden layer's stroke is not read
+    assert np.allclose(line, inside, atol=1e-5)  # float32 points
+    api.add_curve_guide(obj, gp, mode="hard", tolerance=0.02)
+    result = api.solve(obj, n=4, order=2, align="none", write=False)
+    assert api.guide_report(obj)["hard_constraints"] > 0
+    faces = _faces_along(V, F, start, d, 0.25 / 24)
+    faces = faces[(V[F].mean(axis=1)[faces, 0] > 0.25) & (V[F].mean(axis=1)[faces, 0] < 0.9)]
+    u = d / np.linalg.norm(d)
+    alld = np.asarray(result.all_directions())
+    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    assert len(faces) >= 8 and max(dev) < 1.0, (len(faces), max(dev) if dev else None)
+
+
 def test_guide_operators(scene):
     """The operators: add the selected curve objects as guides, remove one, mirror the design (one undo
     step each; errors reported, not raised from Python as tracebacks)."""
@@ -431,6 +498,88 @@ def test_guide_operators(scene):
     assert faces == sorted([face, mirror])
     m = obj.nfield.constraints[[c.face for c in obj.nfield.constraints].index(mirror)]
     assert np.allclose(tuple(m.direction), (-0.2, 0.3, 1.0))  # reflected about x: the x component flips
+
+
+def _tool_probe(tool_cls, base_cls, **state):
+    """An object carrying a modal tool's methods and the state its press would set up, so that its live-edit
+    steps run headless (no window, no event)."""
+    probe = type("Probe", (), {})()
+    for cls in (base_cls, tool_cls):
+        for name, value in vars(cls).items():
+            if callable(value) and name.startswith("_") and not name.startswith("__"):
+                setattr(type(probe), name, value)
+    probe.__dict__.update(state, report=lambda *a, **k: None)
+    return probe
+
+
+def test_design_tools_mirror_what_they_place(scene):
+    """With mirror symmetry on, the constraint and singularity tools place the mirror image of what they
+    place on the partner face / vertex in the same step (their live-edit steps run here through the
+    api helper they call), and the comb mirrors its samples; a face without a partner is said so."""
+    import types
+
+    from mathutils import Vector
+
+    nf = scene
+    api = _api(nf)
+    common = blender_module(nf, "tool_common")
+    V, F = meshgen.icosphere(3)
+    V = V * [1.0, 0.8, 0.6]
+    obj = object_from_arrays("mirror_tools", V, F)
+    obj.nfield.live_update = False
+    api.solve(obj, n=4, order=2, align="curvature-max", write=False)
+    api.set_mirror_symmetry(obj, "x")
+    _, entry, session = api.open_session(obj)
+    ctx = types.SimpleNamespace(area=None, workspace=None)
+    cent = V[F].mean(axis=1)
+    face = int(np.argmax(cent[:, 0] + 0.1 * cent[:, 1]))
+    partner = int(np.argmin(np.linalg.norm(cent - cent[face] * [-1, 1, 1], axis=1)))  # the reflected centroid
+    assert partner != face
+    tool = blender_module(nf, "tool_constraint").NFIELD_OT_constraint_tool
+    probe = _tool_probe(tool, common.ModalViewportTool, _session=session, _entry=entry, _face=face,
+                        _accepted={}, _note="")
+    normal = np.cross(V[F[face, 1]] - V[F[face, 0]], V[F[face, 2]] - V[F[face, 0]])
+    d = np.cross(normal, [0.0, 0.3, 1.0])
+    assert probe._apply(ctx, obj, Vector(d.tolist()))
+    stored = {c.face: np.array(c.direction) for c in obj.nfield.constraints}
+    assert sorted(stored) == sorted([face, partner])
+    assert np.allclose(stored[partner], stored[face] * [-1, 1, 1])  # reflected about x
+    core = _core(nf)
+    arrays = blender_module(nf, "mesh_read").mesh_arrays(obj)
+    mm = core.native().MirrorMap(core.Mesh(arrays.vertices, arrays.triangles).native, "x", 0.0, 1e-9)
+    assert mm.asymmetry(api.field(obj).representation, 4) < 1e-8
+    # the singularity tool: the same index at the mirror vertex
+    vertex = int(np.argmax(V[:, 0] + 0.2 * V[:, 1] + 0.1 * V[:, 2]))
+    mirror_vertex = int(np.argmin(np.linalg.norm(V - V[vertex] * [-1, 1, 1], axis=1)))
+    stool = blender_module(nf, "tool_singularity").NFIELD_OT_singularity_tool
+    placed, note = api.mirror_placements(session, core.SingularityConstraint(vertex, 0.25))
+    assert [s.vertex for s in placed] == [vertex, mirror_vertex] and note == ""
+    probe = _tool_probe(stool, common.ModalViewportTool, _session=session, _entry=entry, _vertex=vertex,
+                        _before={s.vertex: None for s in placed}, _numerator=1, _changed=False, _note="",
+                        _valid=[-1, 1], _explain="")
+    assert probe._preview(ctx, obj, 1)
+    assert sorted((s.vertex, s.numerator) for s in obj.nfield.singularities) == sorted(
+        [(vertex, 1), (mirror_vertex, 1)])
+    # the comb: api.comb(mirror=True) (what the comb tool calls per batch): the comb field is symmetric
+    api.comb(obj, [cent[face]], [d], radius=0.1, mirror=True)
+    dirs, weights = blender_module(nf, "guides").comb_field(obj)
+    assert weights[face] > 0 and abs(weights[partner] - weights[face]) < 1e-6
+    # the same cross (the stored direction is one of its 4 arms): reflected, up to a multiple of 90 degrees
+    c = float(dirs[partner] @ (dirs[face] * [-1, 1, 1]))
+    assert min(abs(abs(c) - 1.0), abs(c)) < 1e-5, c
+    # a vertex moved off its mirror image: partial symmetry, and the tools say what has no partner
+    api.set_mirror_symmetry(obj, None)
+    lonely = int(np.argmax(V[:, 0]))
+    obj.data.vertices[lonely].co.y += 0.05
+    obj.data.update()
+    api.set_mirror_symmetry(obj, "x", partial=True)
+    _, entry, session = api.open_session(obj)
+    unmatched = session.symmetry_info["unmatched"]
+    assert unmatched
+    placed, note = api.mirror_placements(session, core.DirectionConstraint(unmatched[0], (0.0, 1.0, 0.0)))
+    assert len(placed) == 1 and f"face {unmatched[0]} has no mirror partner" in note
+    _, _, note = api.comb_samples(session, [cent[unmatched[0]]], [(0.0, 1.0, 0.0)])
+    assert "1 of 1 comb samples lie on faces without a mirror partner" in note
 
 
 class _Layout:

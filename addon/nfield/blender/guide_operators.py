@@ -8,6 +8,7 @@ import bpy
 from bpy.props import CollectionProperty, EnumProperty, FloatProperty, IntProperty
 
 from . import api
+from .choices import COMB_FALLOFF_ITEMS
 from .guide_properties import NFieldCombSample
 from .guides import CURVE_TYPES
 from .operator_base import NFieldObjectOperator
@@ -79,9 +80,7 @@ class NFIELD_OT_comb_stroke(NFieldObjectOperator, bpy.types.Operator):
     samples: CollectionProperty(type=NFieldCombSample, name="Samples")
     radius: FloatProperty(name="Radius", default=0.03, min=1e-6, max=1.0,
                           description="Brush radius, fraction of the bounding-box diagonal")
-    falloff: EnumProperty(name="Falloff", default="smooth", items=[
-        ("smooth", "Smooth", "Smooth falloff to the brush rim"), ("linear", "Linear", "Linear falloff"),
-        ("constant", "Constant", "Full strength up to the rim")])
+    falloff: EnumProperty(name="Falloff", default="smooth", items=COMB_FALLOFF_ITEMS)
     strength: FloatProperty(name="Strength", default=1.0, min=1e-6, max=1.0, subtype="FACTOR")
 
     def execute(self, context):

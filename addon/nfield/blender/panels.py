@@ -14,7 +14,8 @@ from . import design, session_cache, state
 
 #: the viewport tools the main panel offers buttons for: (tool id, button text, icon)
 TOOL_BUTTONS = (("nfield.tool_constraint", "Constraint Tool", "EMPTY_SINGLE_ARROW"),
-                ("nfield.tool_singularity", "Singularity Tool", "DOT"))
+                ("nfield.tool_singularity", "Singularity Tool", "DOT"),
+                ("nfield.tool_comb", "Comb Tool", "BRUSH_DATA"))
 #: width of one character of the UI font, in pixels at UI scale 1 (wrapping estimate; the sidebar does not
 #: wrap labels itself). Blender's default UI font averages ~6.5 px per character at 11 pt; 7 errs on the
 #: side of shorter lines.
