@@ -6,8 +6,11 @@ the surface, width 2 % of the diagonal) and a comb stroke's worth of comb field,
 each repeated --repeats times (medians):
 
   curve move     translate the curve by 0.5 % of the diagonal (set_curve) + solve(live=True): the curve's band
-                 moves, so the guide weights change; solved exactly in a region, the rest held fixed
-  comb stroke    one stroke of 12 samples, radius 3 % of the diagonal (comb) + solve(live=True)
+                 moves, so the guide weights change; solved exactly in a region, the rest held fixed. The
+                 moves follow each other like the steps of one drag: each starts from the last live solve
+  comb stroke    one brush stroke as the comb tool makes it: 24 samples along 5 % of the diagonal, radius 3 %,
+                 fed 2 samples per viewport tick (begin / extend_comb_stroke) with a live solve per tick. The
+                 edit timed is one tick (what the brush costs while it moves); the whole stroke is reported too
   weight change  set the alignment weight to 0 in a disk of radius 4 % of the diagonal (set_alignment_weight)
                  + solve(live=True)
   target change  turn the base guide by 30 degrees in the same disk (set_alignment_rotation) + solve(): only
@@ -28,7 +31,6 @@ import argparse
 import json
 import statistics
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -113,11 +115,10 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
         r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (i + 1) * step, width=0.02,
                                                                 tolerance=0.02)))
 
-        def comb_edit(i):
-            f0 = int(rng.choice(active))
-            pts = cent[f0] + np.outer(np.linspace(0, 0.05 * diag, 12), np.cross(normals[f0], rng.normal(size=3)))
-            return lambda: s.comb(pts, np.gradient(pts, axis=0), radius=0.03)
-        r["comb_stroke"] = series(comb_edit)
+        r["comb_stroke"] = comb_brush(s, rng, active, cent, normals, diag, repeats, timed)
+        with common.Clock() as gl:
+            s.solve(details=False)
+        r["comb_stroke"]["global_after_s"] = gl.wall
 
         def weight_edit(i):
             f0 = int(rng.choice(active))
@@ -140,11 +141,34 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
     return out
 
 
+def comb_brush(s, rng, active, cent, normals, diag, repeats: int, timed) -> dict:
+    """`repeats` brush strokes of 24 samples, 2 per tick, each tick timed as one live edit (timed: see
+    measure_one). Returns the medians over every tick and the median whole stroke."""
+    import numpy as np
+
+    guide, solve, total, region, strokes = [], [], [], [], []
+    for _ in range(repeats):
+        f0 = int(rng.choice(active))
+        pts = cent[f0] + np.outer(np.linspace(0, 0.05 * diag, 24), np.cross(normals[f0], rng.normal(size=3)))
+        dirs = np.gradient(pts, axis=0)
+        s.begin_comb_stroke(0.03)
+        whole = 0.0
+        for k in range(0, len(pts), 2):
+            gw, sw, reg = timed(lambda k=k: s.extend_comb_stroke(pts[k:k + 2], dirs[k:k + 2]))
+            guide.append(gw), solve.append(sw), total.append(gw + sw), region.append(reg or 0)
+            whole += gw + sw
+        s.end_comb_stroke()
+        strokes.append(whole)
+    return {"guide_s": statistics.median(guide), "solve_s": statistics.median(solve),
+            "total_s": statistics.median(total), "region_faces": int(statistics.median(region)),
+            "ticks_per_stroke": 12, "stroke_s": statistics.median(strokes)}
+
+
 def table(results: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | energy | curve move (live region) | comb stroke (live region) | weight change "
-             "(live region) | target change (global, no refactor) | weight change, global refactor | global "
-             "solve after a live edit |", "|" + "---|" * 9]
+    lines = ["| mesh | faces | energy | curve move (live region) | comb brush, one tick of 2 samples (live "
+             "region) | comb stroke of 24 samples | weight change (live region) | target change (global, no "
+             "refactor) | weight change, global refactor | global solve after a live edit |", "|" + "---|" * 10]
     for r in results:
         for label in ("biharmonic", "harmonic"):
             x = r[label]
@@ -154,8 +178,8 @@ def table(results: list[dict]) -> str:
                 reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
                 return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
             lines.append(f"| {r['mesh']} | {r['faces']:,} | {label} | {cell('curve_move')} | {cell('comb_stroke')} | "
-                         f"{cell('weight_change')} | {cell('target_change')} | {f(x['weight_change_global']['total_s'])} "
-                         f"| {f(x['curve_move']['global_after_s'])} |")
+                         f"{f(x['comb_stroke']['stroke_s'])} | {cell('weight_change')} | {cell('target_change')} | "
+                         f"{f(x['weight_change_global']['total_s'])} | {f(x['curve_move']['global_after_s'])} |")
     return "\n".join(lines)
 
 
@@ -163,7 +187,7 @@ def targets(results: list[dict]) -> list[dict]:
     out = []
     for r in results:
         x = r["biharmonic"]
-        for key, what in (("curve_move", "moving a curve"), ("comb_stroke", "one comb stroke"),
+        for key, what in (("curve_move", "moving a curve"), ("comb_stroke", "the comb brush (one tick)"),
                           ("weight_change", "a weight change")):
             ms = 1000 * x[key]["total_s"]
             out.append({"what": f"{what}, {r['mesh']} ({r['faces']:,} faces), biharmonic, live", "median_ms": ms,
