@@ -114,6 +114,10 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
         step = 0.005 * diag * np.array([1.0, 0.7, 0.3]) / np.linalg.norm([1.0, 0.7, 0.3])
         r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (i + 1) * step, width=0.02,
                                                                 tolerance=0.02)))
+        if order == 2:  # where the time of the biharmonic curve move goes
+            r["curve_move"]["breakdown"] = breakdown(s, lambda i: s.set_curve(
+                "loop", curve + (repeats + i + 1) * step, width=0.02, tolerance=0.02), repeats)
+            s.solve(details=False)
 
         r["comb_stroke"] = comb_brush(s, rng, active, cent, normals, diag, repeats, timed)
         with common.Clock() as gl:
@@ -138,6 +142,54 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
         r["weight_change_global"] = series(weight_edit, live=False, settle=False)
         out[label] = r
     out["loadavg_after"] = common.loadavg()
+    return out
+
+
+def breakdown(s, edit, repeats: int) -> dict:
+    """Where the time of a live edit goes (medians, seconds): the guide computation, choosing the region, the
+    rows of E_m for it (assembly), the region solver's construction (assembly + factorization + the
+    set-up that is proportional to the whole mesh, measured alone with a one-face region), its solve, and the
+    rest of DesignSession.solve (constraints, the FieldResult of the whole mesh). Reads the session's
+    internals: a diagnostic of this benchmark, not an API."""
+    import numpy as np
+    from nfield.core import native
+
+    parts: dict[str, list] = {k: [] for k in ("guide", "region", "rows", "solver", "solver_one_face", "solve",
+                                               "total", "region_faces")}
+    for i in range(repeats):
+        edit(i)
+        with common.Clock() as g:
+            inputs = s._solve_inputs()
+        with common.Clock() as rg:
+            region = s._live_region(inputs)
+        ops, order, rec = s._operators(), s._settings["order"], s._base_record
+        active = np.asarray(s._solve_native_mesh().face_active, dtype=bool)
+
+        def build(free_faces):
+            free = np.zeros(len(active), dtype=bool)
+            free[free_faces] = True
+            frozen = np.flatnonzero(active & ~free)
+            return native().ExactSolver(ops, order, s._settings["strength"], inputs.alignment, inputs.kind,
+                                        frozen_faces=frozen, frozen_values=rec.raw[frozen],
+                                        **s._weight_arguments(inputs))
+
+        with common.Clock() as rows:
+            native().energy_rows(ops, order, region)
+        with common.Clock() as ctor:
+            solver = build(region)
+        with common.Clock() as one:
+            build(region[:1])
+        with common.Clock() as sv:
+            solver.solve()
+        with common.Clock() as total:
+            s.solve(details=False, live=True)
+        for key, value in (("guide", g.wall), ("region", rg.wall), ("rows", rows.wall), ("solver", ctor.wall),
+                           ("solver_one_face", one.wall), ("solve", sv.wall), ("total", total.wall),
+                           ("region_faces", len(region))):
+            parts[key].append(value)
+    out = {k: statistics.median(v) for k, v in parts.items()}
+    out["factorization_estimate"] = max(0.0, out["solver"] - out["rows"] - out["solver_one_face"])
+    out["rest"] = max(0.0, out["total"] - out["region"] - out["solver"] - out["solve"])
     return out
 
 
@@ -183,6 +235,24 @@ def table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+#: the columns of the breakdown table: (header, key of breakdown())
+BREAKDOWN_COLUMNS = (("guide", "guide"), ("region choice", "region"), ("rows of E_m", "rows"),
+                     ("solver set-up (rows + factorization + whole-mesh part)", "solver"),
+                     ("whole-mesh part alone", "solver_one_face"), ("factorization (estimate)", "factorization_estimate"),
+                     ("solve", "solve"), ("rest of solve()", "rest"))
+
+
+def breakdown_table(results: list[dict]) -> str:
+    heads = ["mesh", "live region"] + [h for h, _ in BREAKDOWN_COLUMNS] + ["total"]
+    lines = ["| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
+    for r in results:
+        b = r["biharmonic"]["curve_move"].get("breakdown")
+        if b:
+            cells = [r["mesh"], f"{int(b['region_faces']):,}"] + [common.fmt_ms(b[k]) for _, k in BREAKDOWN_COLUMNS]
+            lines.append("| " + " | ".join(cells + [common.fmt_ms(b["guide"] + b["total"])]) + " |")
+    return "\n".join(lines)
+
+
 def targets(results: list[dict]) -> list[dict]:
     out = []
     for r in results:
@@ -214,7 +284,7 @@ def main() -> int:
     md = "\n".join(["# Live guide edits (exact session)", "", table(results), "",
                     "Medians of " + str(repeats) + " edits. total = guide computation + solve; live edits solve a "
                     "region around the changed faces exactly with the rest held fixed (docs/guides.md, section 7).",
-                    ""])
+                    "", "Where the time of a biharmonic curve move goes (medians):", "", breakdown_table(results), ""])
     common.write_results("guides_quick" if args.quick else "guides", doc, md)
     print(json.dumps(doc, indent=2))
     print(md)

@@ -47,6 +47,21 @@ def _api(nf):
     return blender_module(nf, "api")
 
 
+def _still(name, V, F):
+    """A mesh object from arrays with Live Update off (the test solves when it wants)."""
+    obj = object_from_arrays(name, V, F)
+    obj.nfield.live_update = False
+    return obj
+
+
+def _ellipsoid(name="ellipsoid"):
+    """(object, V, F): an icosphere scaled to an ellipsoid (symmetric about every coordinate plane, with
+    varying curvature), Live Update off."""
+    V, F = meshgen.icosphere(3)
+    V = V * [1.0, 0.8, 0.6]
+    return _still(name, V, F), V, F
+
+
 def _edge_directions(V, pairs):
     d = V[pairs[:, 1]] - V[pairs[:, 0]]
     return d / np.linalg.norm(d, axis=1)[:, None]
@@ -104,8 +119,7 @@ def test_hard_features_from_marked_sharp_edges(scene):
     api = _api(nf)
     mesh = _core(nf).Mesh.from_file(DATA / "fandisk.obj")
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    obj = object_from_arrays("fandisk", V, F)
-    obj.nfield.live_update = False
+    obj = _still("fandisk", V, F)
     pairs = _dihedral_sharp_edges(V, F, 30.0)
     assert _mark_sharp(obj, pairs) == len(pairs) > 100
     plain = api.solve(obj, n=4, order=2, align="curvature-max", strength=1.0, write=False)
@@ -137,8 +151,7 @@ def test_region_borders_are_the_features(scene, source):
     nf = scene
     api = _api(nf)
     V, F = meshgen.icosphere(3)
-    obj = object_from_arrays("sphere", V, F)
-    obj.nfield.live_update = False
+    obj = _still("sphere", V, F)
     cent = V[F].mean(axis=1)
     labels = (cent[:, 2] > 0.3).astype(np.int64) + (cent[:, 0] > 0.5).astype(np.int64) * 2
     me = obj.data
@@ -168,10 +181,7 @@ def _face_attribute(obj, name, values):
 def test_rotation_attribute_turns_a_line_field_by_its_angle(scene):
     nf = scene
     api = _api(nf)
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("ellipsoid", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid()
     plain = np.asarray(api.solve(obj, n=2, order=2, align="curvature-max", write=False).directions)
     _face_attribute(obj, "turn", np.full(len(F), math.pi / 2))
     api.set_guide_attributes(obj, rotation="turn")
@@ -184,10 +194,7 @@ def test_weight_attribute_matches_core(scene):
     nf = scene
     core = _core(nf)
     api = _api(nf)
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("ellipsoid", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid()
     cent = V[F].mean(axis=1)
     w = np.where(cent[:, 0] > 0, 0.0, 3.0).astype(np.float32)  # no alignment at all on the x > 0 half
     _face_attribute(obj, "w", w)
@@ -220,6 +227,21 @@ def _poly_curve(name, points):
     return ob
 
 
+def _move_curve(curve, points):
+    """New points for the first spline of a poly curve object, and the depsgraph update that follows an edit."""
+    for p, xyz in zip(curve.data.splines[0].points, points):
+        p.co = (*xyz, 1.0)
+    curve.data.update_tag()
+    bpy.context.view_layer.update()
+
+
+def _line_deviation(result, faces, direction):
+    """Per face: degrees between the line of `direction` and the nearest of the field's directions."""
+    u = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
+    alld = np.asarray(result.all_directions())
+    return [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+
+
 def _faces_along(V, F, start, direction, tol):
     """Faces whose centroid lies within `tol` of the line start + t direction. With `tol` below the inradius
     (grid triangles: right isosceles with legs h, inradius (2 - sqrt 2) h / 2 = 0.29 h) the line crosses them."""
@@ -245,23 +267,16 @@ def test_curve_guide_follows_the_curve_and_its_edits(scene):
     faces = _faces_along(V, F, start, d1, 0.25 * h)
     faces = faces[(V[F].mean(axis=1)[faces, 0] > 0.15) & (V[F].mean(axis=1)[faces, 0] < 0.8)]
     assert len(faces) >= 8
-    u = d1 / np.linalg.norm(d1)
-    alld = np.asarray(result.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(result, faces, d1)
     assert max(dev) < 1.0, max(dev)
     # move the curve: a new direction; the depsgraph handler re-solves (Live Update) with the new curve
     d2 = np.array([0.4, 1.0, 0.0])
-    for p, xyz in zip(curve.data.splines[0].points, [start + t * d2 for t in np.linspace(0, 0.75, 9)]):
-        p.co = (*xyz, 1.0)
-    curve.data.update_tag()
-    bpy.context.view_layer.update()
+    _move_curve(curve, [start + t * d2 for t in np.linspace(0, 0.75, 9)])
     moved = api.field(obj)
     assert moved is not result, "editing the curve did not re-solve"
     faces = _faces_along(V, F, start, d2, 0.25 * h)
     faces = faces[(V[F].mean(axis=1)[faces, 1] > 0.25) & (V[F].mean(axis=1)[faces, 1] < 0.9)]
-    u = d2 / np.linalg.norm(d2)
-    alld = np.asarray(moved.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(moved, faces, d2)
     assert len(faces) >= 8 and max(dev) < 1.0, (len(faces), max(dev) if dev else None)
     api.remove_curve_guide(obj, curve)
     assert len(obj.nfield_guides.curves) == 0
@@ -271,10 +286,7 @@ def test_mirror_symmetry_exact_and_refusal(scene):
     nf = scene
     core = _core(nf)
     api = _api(nf)
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("ellipsoid", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid()
     info = api.set_mirror_symmetry(obj, "x")
     assert info["matched"] == len(F) and info["unmatched"] == []
     cent = V[F].mean(axis=1)
@@ -307,8 +319,7 @@ def test_seams_cut_the_field(scene):
     nf = scene
     api = _api(nf)
     V, F = meshgen.grid(21, 21)
-    obj = object_from_arrays("slit", V, F)
-    obj.nfield.live_update = False
+    obj = _still("slit", V, F)
     idx = np.arange(21 * 21).reshape(21, 21)
     slit = np.array([(idx[10, j], idx[10, j + 1]) for j in range(0, 16)])
     me = obj.data
@@ -340,8 +351,7 @@ def test_guides_persist_in_the_blend(scene, tmp_path):
     nf = scene
     api = _api(nf)
     V, F = meshgen.icosphere(2)
-    obj = object_from_arrays("keep", V, F)
-    obj.nfield.live_update = False
+    obj = _still("keep", V, F)
     curve = _poly_curve("keep_curve", [(0, 0, 1.2), (0.5, 0.5, 1.0)])
     api.set_feature_alignment(obj, boundary=False, dihedral=True, angle=5.0, mode="hard", every=2)
     api.add_curve_guide(obj, curve, mode="soft", weight=2.5, tolerance=0.5)
@@ -357,6 +367,38 @@ def test_guides_persist_in_the_blend(scene, tmp_path):
     api.solve(bpy.data.objects["keep"], write=False)
     report = api.guide_report(bpy.data.objects["keep"])
     assert report["symmetry"]["axis"] == "z" and report["feature_edges"] > 0
+
+
+def test_guide_edits_undo_and_redo(scene):
+    """Guide edits are undo steps like the rest of the design: feature settings (obj.nfield_guides) and a comb
+    stroke (the comb face attributes, one step per stroke) come and go with undo / redo, and the next solve
+    uses what the restored state holds."""
+    nf = scene
+    api = _api(nf)
+    reader = blender_module(nf, "guides")
+    obj, V, F = _ellipsoid("undo_guides")
+    api.solve(obj, n=4, order=2, align="curvature-max", write=False)
+    bpy.ops.ed.undo_push(message="start")
+    api.set_feature_alignment(obj, boundary=False, dihedral=True, angle=5.0, mode="soft")
+    bpy.ops.ed.undo_push(message="features")
+    samples = [{"name": "", "location": tuple(V[F[0]].mean(axis=0)), "direction": (0.0, 0.0, 1.0)}]
+    assert bpy.ops.nfield.comb_stroke(samples=samples, radius=0.1) == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="comb")
+    combed = reader.comb_field(bpy.data.objects["undo_guides"])
+    assert combed is not None and combed[1].max() > 0
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects["undo_guides"]
+    assert reader.comb_field(obj) is None and obj.nfield_guides.use_features  # the stroke only
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects["undo_guides"]
+    assert not obj.nfield_guides.use_features
+    api.solve(obj, write=False)
+    assert api.guide_report(obj)["feature_edges"] == 0
+    assert bpy.ops.ed.redo() == {"FINISHED"} and bpy.ops.ed.redo() == {"FINISHED"}
+    obj = bpy.data.objects["undo_guides"]
+    assert obj.nfield_guides.use_features and np.array_equal(reader.comb_field(obj)[1], combed[1])
+    api.solve(obj, write=False)
+    assert api.guide_report(obj)["feature_edges"] > 0
 
 
 def test_curve_sources_are_read_in_the_mesh_space(scene):
@@ -438,8 +480,7 @@ def test_grease_pencil_strokes_are_curve_guides(scene):
     api = _api(nf)
     reader = blender_module(nf, "guides")
     V, F = meshgen.grid(25, 25)
-    obj = object_from_arrays("gp_plate", V, F)
-    obj.nfield.live_update = False
+    obj = _still("gp_plate", V, F)
     obj.location = (1.0, 0.0, 0.0)
     obj.scale = (2.0, 2.0, 2.0)
     start, d = np.array([0.2, 0.3, 0.0]), np.array([1.0, 0.45, 0.0])
@@ -463,9 +504,7 @@ def test_grease_pencil_strokes_are_curve_guides(scene):
     assert api.guide_report(obj)["hard_constraints"] > 0
     faces = _faces_along(V, F, start, d, 0.25 / 24)
     faces = faces[(V[F].mean(axis=1)[faces, 0] > 0.25) & (V[F].mean(axis=1)[faces, 0] < 0.9)]
-    u = d / np.linalg.norm(d)
-    alld = np.asarray(result.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(result, faces, d)
     assert len(faces) >= 8 and max(dev) < 1.0, (len(faces), max(dev) if dev else None)
 
 
@@ -474,8 +513,7 @@ def test_guide_operators(scene):
     step each; errors reported, not raised from Python as tracebacks)."""
     nf = scene
     V, F = meshgen.icosphere(3)
-    obj = object_from_arrays("ball", V, F)
-    obj.nfield.live_update = False
+    obj = _still("ball", V, F)
     c1 = _poly_curve("c1", [(0, -1.2, 0.2), (0.0, -0.2, 1.2)])
     c2 = _poly_curve("c2", [(-1.2, 0, 0.2), (-0.2, 0.0, 1.2)])
     for o in (obj, c1, c2):
@@ -523,10 +561,7 @@ def test_design_tools_mirror_what_they_place(scene):
     nf = scene
     api = _api(nf)
     common = blender_module(nf, "tool_common")
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("mirror_tools", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid("mirror_tools")
     api.solve(obj, n=4, order=2, align="curvature-max", write=False)
     api.set_mirror_symmetry(obj, "x")
     _, entry, session = api.open_session(obj)
@@ -620,8 +655,7 @@ def test_guides_panel_draws_every_setting(scene):
     nf = scene
     panels = blender_module(nf, "guide_panels")
     V, F = meshgen.icosphere(2)
-    obj = object_from_arrays("panel", V, F)
-    obj.nfield.live_update = False
+    obj = _still("panel", V, F)
     c = _poly_curve("pc", [(0, -1.2, 0.2), (0.0, -0.2, 1.2)])
     blender_module(nf, "api").add_curve_guide(obj, c)
 
@@ -663,19 +697,14 @@ def test_curve_edit_is_solved_live_in_a_window(scene, monkeypatch):
     monkeypatch.setattr(jobs, "interactive", lambda: True)
     monkeypatch.setattr(jobs, "start_later", lambda name: launched.append(name))
     d2 = np.array([0.4, 1.0, 0.0])
-    for p, xyz in zip(curve.data.splines[0].points, [start + t * d2 for t in np.linspace(0, 0.4, 9)]):
-        p.co = (*xyz, 1.0)
-    curve.data.update_tag()
-    bpy.context.view_layer.update()
+    _move_curve(curve, [start + t * d2 for t in np.linspace(0, 0.4, 9)])
     live = api.field(obj)
     assert live.live_region is not None and 0 < live.live_region < len(F), live.live_region
     assert launched == ["grid_live"]
     h = 1.0 / 59
     faces = _faces_along(V, F, start, d2, 0.25 * h)
     faces = faces[(V[F].mean(axis=1)[faces, 1] > 0.35) & (V[F].mean(axis=1)[faces, 1] < 0.65)]
-    u = d2 / np.linalg.norm(d2)
-    alld = np.asarray(live.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(live, faces, d2)
     # a soft pull of weight 50 and no other alignment term: the faces on the curve take its direction (measured
     # 3e-5 degrees; 1 degree is the bound of the hard guides); the old curve, 42 degrees away, no longer pulls
     assert len(faces) >= 6 and max(dev) < 1.0, (len(faces), max(dev))

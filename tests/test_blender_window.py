@@ -88,7 +88,12 @@ def _xdo(env, *args):
 
 
 def _start_xvfb(tmp_path):
-    """(environment for GUI Blender on a fresh Xvfb display with a temporary user profile, the Xvfb process)."""
+    """(environment for GUI Blender on a fresh Xvfb display with a temporary user profile, the Xvfb process,
+    the console log file). Skips the test (reason printed) without Xvfb, xdotool or Blender."""
+    reason = _missing()
+    if reason:
+        print(f"SKIP: {reason}")
+        pytest.skip(reason)
     display = _free_display()
     env = system_blender_env()
     env["DISPLAY"] = f":{display}"
@@ -101,7 +106,7 @@ def _start_xvfb(tmp_path):
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     time.sleep(1.0)
     assert xvfb.poll() is None, "Xvfb did not start"
-    return env, xvfb
+    return env, xvfb, open(tmp_path / "blender.log", "w")
 
 
 def _start_blender(env, script, args, log):
@@ -113,12 +118,21 @@ def _start_blender(env, script, args, log):
         env=env, stdout=log, stderr=subprocess.STDOUT)
 
 
-def _stop(blender, xvfb, log):
+def _stop(blender, xvfb, log) -> str:
+    """Stop Blender (if still running) and Xvfb; returns Blender's console output (its end printed)."""
     if blender is not None and blender.poll() is None:
         blender.kill()
     xvfb.terminate()
     xvfb.wait(timeout=10)
     log.close()
+    console = Path(log.name).read_text()
+    print(console[-3000:])
+    return console
+
+
+def _assert_no_traceback(console: str) -> None:
+    """Nothing raised anywhere from start to quit (a toolbar query, a draw callback, a handler, a timer)."""
+    assert "Traceback" not in console, console[console.index("Traceback") - 200:][:3000]
 
 
 def _blender_window_id(env) -> str:
@@ -206,13 +220,8 @@ def _check_undo(undo):
 
 
 def test_constraint_drag_in_real_window(tmp_path, addon_zip):
-    reason = _missing()
-    if reason:
-        print(f"SKIP: {reason}")
-        pytest.skip(reason)
-    env, xvfb = _start_xvfb(tmp_path)
+    env, xvfb, log = _start_xvfb(tmp_path)
     blender = None
-    log = open(tmp_path / "blender.log", "w")
     try:
         work = tmp_path / "work"
         blender = _start_blender(env, SCRIPT, [work, addon_zip], log)
@@ -267,12 +276,9 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
             undo = _wait_file(work / "undo.json", blender, 300)
         blender.wait(timeout=60)
     finally:
-        _stop(blender, xvfb, log)
-    console = (tmp_path / "blender.log").read_text()
-    print(console[-3000:])
+        console = _stop(blender, xvfb, log)
     assert "error" not in result, result.get("error")
-    # Nothing raised anywhere from start to quit (a toolbar query, a draw callback, a handler, a timer).
-    assert "Traceback" not in console, console[console.index("Traceback") - 200:][:3000]
+    _assert_no_traceback(console)
     _check_toolbar(ready["toolbar"])
     _check_reaim(json.loads((work / "reaim.json").read_text()), json.loads((work / "ready2.json").read_text()))
     _check_panel(json.loads((work / "panel.json").read_text()))
@@ -348,13 +354,8 @@ def test_comb_brush_in_real_window(tmp_path, addon_zip):
     """The comb tool on the Stanford bunny (69,451 faces) in Debian's Blender 3.4 under Xvfb: a horizontal
     drag across the body (tests/blender_scripts/window_comb.py) paints the comb attribute along the stroke
     in the drag's direction, the solved field there turns to it, and one undo removes the stroke."""
-    reason = _missing()
-    if reason:
-        print(f"SKIP: {reason}")
-        pytest.skip(reason)
-    env, xvfb = _start_xvfb(tmp_path)
+    env, xvfb, log = _start_xvfb(tmp_path)
     blender = None
-    log = open(tmp_path / "blender.log", "w")
     try:
         work = tmp_path / "work"
         blender = _start_blender(env, COMB_SCRIPT, [work, addon_zip, ROOT / "tests" / "data" / "stanford-bunny.obj"],
@@ -381,11 +382,9 @@ def test_comb_brush_in_real_window(tmp_path, addon_zip):
         undo = _wait_file(work / "undo.json", blender, 400) if "error" not in result else {}
         blender.wait(timeout=60)
     finally:
-        _stop(blender, xvfb, log)
-    console = (tmp_path / "blender.log").read_text()
-    print(console[-3000:])
+        console = _stop(blender, xvfb, log)
     assert "error" not in result, result.get("error")
-    assert "Traceback" not in console, console[console.index("Traceback") - 200:][:3000]
+    _assert_no_traceback(console)
     stroke = result["stroke"]
     print("stroke:", json.dumps(stroke), "background:", json.dumps(result["background"]))
     ARTIFACTS.mkdir(parents=True, exist_ok=True)

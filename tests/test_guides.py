@@ -602,3 +602,47 @@ def test_spectral_mode_with_guides():
     r3 = s.solve()
     assert r3.mode == "spectral" and s._basis.mesh_hash == s._solve_native_mesh().content_hash
     assert s._basis.mesh_hash != mesh.native.content_hash
+
+
+def test_live_region_budget_and_factorization_reuse():
+    """A live edit whose full margin would exceed LIVE_REGION_BUDGET grows fewer rings (the changed faces are
+    always in); a later live edit of the same region with the same weights there (a target-only change: two
+    rotations of the same faces) reuses the region's factorization and is still the exact spline of the
+    region (optimality at its free faces)."""
+    from nfield.core import session_live
+
+    mesh = core_mesh("fandisk.obj")
+    V = mesh.vertices
+    s = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    s.solve()
+    a, b = V[np.argmin(V[:, 0])], V[np.argmax(V[:, 0])]
+    line = a + np.linspace(0.3, 0.6, 30)[:, None] * (b - a)
+    s.set_curve("c", line, width=0.03, tolerance=0.2)
+    inputs = s._solve_inputs()
+    full = s._live_region(inputs)
+    budget = session_live.LIVE_REGION_BUDGET
+    try:
+        session_live.LIVE_REGION_BUDGET = len(full) - 1
+        narrow = s._live_region(inputs)
+        assert len(narrow) < len(full) and set(narrow.tolist()) < set(full.tolist())
+        changed = np.flatnonzero((np.asarray(inputs.matrix_weight) != s._base_record.weight)
+                                 | (np.asarray(inputs.alignment) != s._base_record.value))
+        assert set(changed.tolist()) <= set(narrow.tolist())  # the changed faces are always solved
+    finally:
+        session_live.LIVE_REGION_BUDGET = budget
+    s.solve(details=False, live=True)  # the curve's live solve: the global solve is now due
+    # two rotations of the same faces: the second edit's region and weights are those of the first
+    cent = V[mesh.faces].mean(axis=1)
+    turned = np.linalg.norm(cent - cent[0], axis=1) < 0.1 * mesh.native.bounding_box_diagonal
+    theta = np.where(turned, 0.3, 0.0)
+    s.set_alignment_rotation(theta)
+    first = s.solve(details=False, live=True)
+    built, region = s._live_solver, s._live_key[1]
+    s.set_alignment_rotation(2 * theta)
+    second = s.solve(details=False, live=True)
+    assert s._live_solver is built and np.array_equal(s._live_key[1], region)  # the factorization was reused
+    assert np.abs(second.raw_solution - first.raw_solution).max() > 1e-6  # the targets did change the field
+    grad, scale = spline_residual(mesh, s, second)
+    constrained = {mesh.face_triangle(c.face) for c in s.constraints}
+    free = np.setdiff1d(region, list(constrained))
+    assert np.abs(grad[free]).max() < 1e-9 * scale

@@ -22,6 +22,7 @@ import os
 import sys
 import time
 import traceback
+from pathlib import Path
 
 import faulthandler
 
@@ -40,10 +41,10 @@ STATE = {"t0": time.time()}
 
 
 def write_json(name, data):
-    path = os.path.join(WORKDIR, name)
-    with open(path + ".tmp", "w") as fh:
-        json.dump(data, fh, indent=1)
-    os.replace(path + ".tmp", path)
+    """WORKDIR/name, written whole at once (the test polls for it)."""
+    tmp = Path(WORKDIR, name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    tmp.replace(Path(WORKDIR, name))
 
 
 def give_up(name, text):
@@ -58,29 +59,26 @@ def the_view():
     return win, area, next(r for r in area.regions if r.type == "WINDOW")
 
 
+def looking():
+    """(window, 3D view region, its view matrices, the bunny object): what the picking code needs."""
+    win, area, region = the_view()
+    return win, region, area.spaces.active.region_3d, bpy.data.objects[STATE["obj"]]
+
+
 def in_view(fn, *args, **kw):
     win, area, region = the_view()
     with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
         return fn(*args, **kw)
 
 
-def read_obj(path):
-    verts, faces = [], []
-    with open(path) as fh:
-        for line in fh:
-            if line.startswith("v "):
-                verts.append([float(x) for x in line.split()[1:4]])
-            elif line.startswith("f "):
-                faces.append([int(tok.split("/")[0]) - 1 for tok in line.split()[1:]])
-    return verts, faces
-
-
 def build_scene():
     for o in list(bpy.data.objects):
         bpy.data.objects.remove(o)
-    verts, faces = read_obj(MESH)
+    from nfield.core import native  # the add-on's own OBJ reader
+
+    verts, faces, _polygon, _count = native().read_mesh(MESH)
     me = bpy.data.meshes.new("bunny")
-    me.from_pydata(verts, [], faces)
+    me.from_pydata(np.asarray(verts).tolist(), [], np.asarray(faces).tolist())
     me.update()
     obj = bpy.data.objects.new("Bunny", me)
     bpy.context.collection.objects.link(obj)
@@ -159,9 +157,7 @@ def pick_path():
     most a cross field can differ from a direction), in integer pixel steps, every pixel of it and a brush
     radius to either side on the mesh."""
     try:
-        win, area, region = the_view()
-        rv3d = area.spaces.active.region_3d
-        obj = bpy.data.objects[STATE["obj"]]
+        win, region, rv3d, obj = looking()
         mw = obj.matrix_world
         pts = [view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ Vector(c)) for c in obj.bound_box]
         xs, ys = [p.x for p in pts if p], [p.y for p in pts if p]
@@ -311,9 +307,7 @@ def report():
     from nfield.blender import background, tool_comb
 
     try:
-        win, area, region = the_view()
-        rv3d = area.spaces.active.region_3d
-        obj = bpy.data.objects[STATE["obj"]]
+        win, region, rv3d, obj = looking()
         a, b = STATE["path"][0], STATE["path"][-1]
         core = stroke_faces(obj, region, rv3d, a, b, 0.3 * BRUSH_PIXELS)
         v = Vector((-(b[1] - a[1]), b[0] - a[0])).normalized() * 4 * BRUSH_PIXELS  # four radii to the side

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import NFieldError
+from .mesh_read import named_attribute
 
 __all__ = ["MARKED_SOURCES", "marked_edges", "edge_attribute_edges", "face_values", "curve_polylines",
            "CURVE_TYPES", "COMB_DIRECTION", "COMB_WEIGHT", "comb_field", "write_comb_field", "remove_comb_field"]
@@ -114,14 +115,8 @@ def edge_attribute_edges(obj, name: str) -> np.ndarray:
     """(k, 2) vertex pairs of the edges where the edge-domain attribute `name` is set (BOOLEAN true, FLOAT
     > 0.5 or INT != 0). NFieldError naming the problem if there is no such edge attribute."""
     me = obj.data
-    if not name:
-        raise NFieldError("cuts come from an edge attribute but no attribute name is set")
-    attr = me.attributes.get(name)
-    if attr is None:
-        raise NFieldError(f"cut attribute '{name}' does not exist on mesh '{me.name}'")
-    if attr.domain != "EDGE" or attr.data_type not in ("BOOLEAN", "FLOAT", "INT"):
-        raise NFieldError(f"cut attribute '{name}' must be an EDGE-domain BOOLEAN, FLOAT or INT attribute "
-                          f"(it is {attr.domain} {attr.data_type})")
+    attr = named_attribute(obj, name, "cut attribute", "EDGE", ("BOOLEAN", "FLOAT", "INT"),
+                           unset="cuts come from an edge attribute but no attribute name is set")
     n = len(me.edges)
     if attr.data_type == "BOOLEAN":
         flags = np.zeros(n, dtype=bool)
@@ -141,12 +136,7 @@ def face_values(obj, name: str, what: str) -> np.ndarray:
     """The face-domain FLOAT attribute `name` as (polygons,) float64. `what` names its role in messages
     ("guide weight", "guide rotation"). NFieldError if it is missing, of another domain or type, or not finite."""
     me = obj.data
-    attr = me.attributes.get(name)
-    if attr is None:
-        raise NFieldError(f"{what} attribute '{name}' does not exist on mesh '{me.name}'")
-    if attr.domain != "FACE" or attr.data_type != "FLOAT":
-        raise NFieldError(f"{what} attribute '{name}' must be a FACE-domain FLOAT attribute "
-                          f"(it is {attr.domain} {attr.data_type})")
+    attr = named_attribute(obj, name, f"{what} attribute", "FACE", ("FLOAT",))
     vals = np.empty(len(me.polygons), dtype=np.float32)
     attr.data.foreach_get("value", vals)
     out = vals.astype(np.float64)

@@ -145,6 +145,17 @@ class NFieldSubpanel(_NFieldPanel):
     bl_parent_id = "NFIELD_PT_main"
 
 
+class NFieldMeshSubpanel(NFieldSubpanel):
+    """Base of the subpanels that register themselves (guides, quad remesh): closed at first, shown for any
+    active mesh object (they draw their own message when the compiled solver cannot be loaded)."""
+
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return _mesh_object(context) is not None
+
+
 def solver_state_text(obj) -> str:
     """The status line of the solver: the mode and, in spectral mode, whether the basis is ready."""
     st = obj.nfield
