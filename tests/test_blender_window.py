@@ -21,9 +21,9 @@ Checks:
   while it computes (settings restored, the status says cancelled, the UI updated the progress meanwhile),
   a small one runs to the end (spectral mode, basis ready, the field solved in the basis);
 * a settings change that needs a new factorization is solved by the background operator's worker thread;
-* the toolbar: the two nfield tools in groups of their own after the transform tools and a separator, and
-  every toolbar query Blender makes succeeds for every tool; no ``Traceback`` in the console from start to
-  quit;
+* the toolbar: the three nfield tools (constraint, singularity, comb) in groups of their own after the
+  transform tools and a separator, and every toolbar query Blender makes succeeds for every tool; no
+  ``Traceback`` in the console from start to quit;
 * pressing the constraint's arrowhead (over a neighbouring face) and dragging re-aims that constraint;
 * at the sidebar's default width the split-layout labels, the full-width buttons and the wrapped message
   lines fit (measured with ``blf`` in the UI font, not read from pixels); the panel is drawn as a popover
@@ -155,7 +155,7 @@ def _check_toolbar(toolbar):
     layout = toolbar["layout"]
     print("toolbar:", json.dumps(layout))
     assert toolbar["query_errors"] == [], toolbar["query_errors"]
-    ours = {"nfield.tool_constraint", "nfield.tool_singularity"}
+    ours = {"nfield.tool_constraint", "nfield.tool_singularity", "nfield.tool_comb"}
     groups = [item for item in layout if isinstance(item, list)]
     assert all(None not in g for g in groups), "a separator inside a toolbar group"
     holding = [g for g in groups if ours & set(g)]

@@ -79,6 +79,7 @@ def build_scene():
     verts, faces, _polygon, _count = native().read_mesh(MESH)
     me = bpy.data.meshes.new("bunny")
     me.from_pydata(np.asarray(verts).tolist(), [], np.asarray(faces).tolist())
+    me.polygons.foreach_set("use_smooth", [True] * len(me.polygons))  # smooth shading: the glyphs read better
     me.update()
     obj = bpy.data.objects.new("Bunny", me)
     bpy.context.collection.objects.link(obj)
