@@ -7,7 +7,8 @@ each repeated --repeats times (medians):
 
   curve move     translate the curve by 0.5 % of the diagonal (set_curve) + solve(live=True): the curve's band
                  moves, so the guide weights change; solved exactly in a region, the rest held fixed. The
-                 moves follow each other like the steps of one drag: each starts from the last live solve
+                 moves follow each other like the steps of one drag going back and forth (each starts from the
+                 last live solve; the loop stays on the surface)
   comb stroke    one brush stroke as the comb tool makes it: 24 samples along 5 % of the diagonal, radius 3 %,
                  fed 2 samples per viewport tick (begin / extend_comb_stroke) with a live solve per tick. The
                  edit timed is one tick (what the brush costs while it moves); the whole stroke is reported too
@@ -112,11 +113,12 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
             return res
 
         step = 0.005 * diag * np.array([1.0, 0.7, 0.3]) / np.linalg.norm([1.0, 0.7, 0.3])
-        r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (i + 1) * step, width=0.02,
+        # the steps of a drag that goes back and forth by one step (so the loop stays on the surface)
+        r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (1 + i % 2) * step, width=0.02,
                                                                 tolerance=0.02)))
         if order == 2:  # where the time of the biharmonic curve move goes
-            r["curve_move"]["breakdown"] = breakdown(s, lambda i: s.set_curve(
-                "loop", curve + (repeats + i + 1) * step, width=0.02, tolerance=0.02), repeats)
+            r["curve_move"]["breakdown"] = breakdown(s, lambda i: s.set_curve(  # from where the series ended
+                "loop", curve + (1 + (i + repeats) % 2) * step, width=0.02, tolerance=0.02), repeats)
             s.solve(details=False)
 
         r["comb_stroke"] = comb_brush(s, rng, active, cent, normals, diag, repeats, timed)

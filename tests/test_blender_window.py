@@ -30,6 +30,9 @@ Checks:
   and kept as tests/artifacts/blender_panel.png;
 * an undo to a state whose solve needs a spectral basis hands that solve to the worker: the UI timer keeps
   ticking (see _check_undo for the bound).
+test_comb_brush_in_real_window (tests/blender_scripts/window_comb.py) drags the comb brush across the Stanford
+bunny: the comb attribute along the stroke, its direction against the drag measured with Blender's own ray
+casts, the solved field turning to it, one undo removing exactly the stroke; tests/artifacts/comb_tool.png.
 Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing.
 """
 from __future__ import annotations

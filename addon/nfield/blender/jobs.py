@@ -67,7 +67,8 @@ def start_when_idle(obj_name: str, idle_seconds: float) -> None:
 
     def launch():
         last = _interaction.get(obj_name)
-        if last is not None and (last == 0.0 or time.monotonic() - last < idle_seconds):
+        if bpy.data.objects.get(obj_name) is not None and last is not None and (
+                last == 0.0 or time.monotonic() - last < idle_seconds):
             return 0.1  # still working: look again
         _scheduled.discard(obj_name)
         return _launch(obj_name)

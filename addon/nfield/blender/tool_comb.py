@@ -93,7 +93,7 @@ class NFIELD_OT_comb_tool(ModalViewportTool, Operator):
             self.report({"ERROR"}, failure_message(exc))
             return False
         jobs.interacting(obj.name, True)
-        self._radius, self._spacing = radius, SAMPLE_SPACING * radius
+        self._spacing = SAMPLE_SPACING * radius
         self._last = hit[0].copy()  # the last sample's point (object space); None after the path left the mesh
         self._first = True          # the press point becomes a sample once the drag gives it a direction
         self._points: list = []     # samples the session has not had yet
@@ -159,7 +159,6 @@ class NFIELD_OT_comb_tool(ModalViewportTool, Operator):
     def release(self, context, obj):
         if self._points:
             self._apply(context, obj)
-        jobs.interacting(obj.name, False)
         if not self._num_samples:  # a click without a drag has no direction: nothing, no undo step
             self._session.cancel_comb_stroke()
             return False
@@ -178,13 +177,18 @@ class NFIELD_OT_comb_tool(ModalViewportTool, Operator):
         return True
 
     def restore(self, context, obj):
-        jobs.interacting(obj.name, False)
         self._session.cancel_comb_stroke()
         if not self._solved:
             return  # the field never changed
         self._solve_or_put_back(obj, live=True)
         if jobs.interactive() and self._session.pending_work() == "factorization":
             jobs.start_when_idle(obj.name, IDLE_SECONDS)
+
+    def _finish(self, context, cancelled):
+        jobs.interacting(self._obj_name, False)  # whatever ended the stroke (release, Esc, the object deleted)
+        if self._session.comb_stroke_active:
+            self._session.cancel_comb_stroke()
+        return super()._finish(context, cancelled)
 
 
 def draw_cursor(_context, tool, xy) -> None:
