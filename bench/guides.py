@@ -6,8 +6,12 @@ the surface, width 2 % of the diagonal) and a comb stroke's worth of comb field,
 each repeated --repeats times (medians):
 
   curve move     translate the curve by 0.5 % of the diagonal (set_curve) + solve(live=True): the curve's band
-                 moves, so the guide weights change; solved exactly in a region, the rest held fixed
-  comb stroke    one stroke of 12 samples, radius 3 % of the diagonal (comb) + solve(live=True)
+                 moves, so the guide weights change; solved exactly in a region, the rest held fixed. The
+                 moves follow each other like the steps of one drag going back and forth (each starts from the
+                 last live solve; the loop stays on the surface)
+  comb stroke    one brush stroke as the comb tool makes it: 24 samples along 5 % of the diagonal, radius 3 %,
+                 fed 2 samples per viewport tick (begin / extend_comb_stroke) with a live solve per tick. The
+                 edit timed is one tick (what the brush costs while it moves); the whole stroke is reported too
   weight change  set the alignment weight to 0 in a disk of radius 4 % of the diagonal (set_alignment_weight)
                  + solve(live=True)
   target change  turn the base guide by 30 degrees in the same disk (set_alignment_rotation) + solve(): only
@@ -28,7 +32,6 @@ import argparse
 import json
 import statistics
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -110,14 +113,18 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
             return res
 
         step = 0.005 * diag * np.array([1.0, 0.7, 0.3]) / np.linalg.norm([1.0, 0.7, 0.3])
-        r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (i + 1) * step, width=0.02,
+        # the steps of a drag that goes back and forth by one step (so the loop stays on the surface)
+        r["curve_move"] = series(lambda i: (lambda: s.set_curve("loop", curve + (1 + i % 2) * step, width=0.02,
                                                                 tolerance=0.02)))
+        if order == 2:  # where the time of the biharmonic curve move goes
+            r["curve_move"]["breakdown"] = breakdown(s, lambda i: s.set_curve(  # from where the series ended
+                "loop", curve + (1 + (i + repeats) % 2) * step, width=0.02, tolerance=0.02), repeats)
+            s.solve(details=False)
 
-        def comb_edit(i):
-            f0 = int(rng.choice(active))
-            pts = cent[f0] + np.outer(np.linspace(0, 0.05 * diag, 12), np.cross(normals[f0], rng.normal(size=3)))
-            return lambda: s.comb(pts, np.gradient(pts, axis=0), radius=0.03)
-        r["comb_stroke"] = series(comb_edit)
+        r["comb_stroke"] = comb_brush(s, rng, active, cent, normals, diag, repeats, timed)
+        with common.Clock() as gl:
+            s.solve(details=False)
+        r["comb_stroke"]["global_after_s"] = gl.wall
 
         def weight_edit(i):
             f0 = int(rng.choice(active))
@@ -140,11 +147,82 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
     return out
 
 
+def breakdown(s, edit, repeats: int) -> dict:
+    """Where the time of a live edit goes (medians, seconds): the guide computation, choosing the region, the
+    rows of E_m for it (assembly), the region solver's construction (assembly + factorization + the
+    set-up that is proportional to the whole mesh, measured alone with a one-face region), its solve, and the
+    rest of DesignSession.solve (constraints, the FieldResult of the whole mesh). Reads the session's
+    internals: a diagnostic of this benchmark, not an API."""
+    import numpy as np
+    from nfield.core import native
+
+    parts: dict[str, list] = {k: [] for k in ("guide", "region", "rows", "solver", "solver_one_face", "solve",
+                                               "total", "region_faces")}
+    for i in range(repeats):
+        edit(i)
+        with common.Clock() as g:
+            inputs = s._solve_inputs()
+        with common.Clock() as rg:
+            region = s._live_region(inputs)
+        ops, order, rec = s._operators(), s._settings["order"], s._base_record
+        active = np.asarray(s._solve_native_mesh().face_active, dtype=bool)
+
+        def build(free_faces):
+            free = np.zeros(len(active), dtype=bool)
+            free[free_faces] = True
+            frozen = np.flatnonzero(active & ~free)
+            return native().ExactSolver(ops, order, s._settings["strength"], inputs.alignment, inputs.kind,
+                                        frozen_faces=frozen, frozen_values=rec.raw[frozen],
+                                        **s._weight_arguments(inputs))
+
+        with common.Clock() as rows:
+            native().energy_rows(ops, order, region)
+        with common.Clock() as ctor:
+            solver = build(region)
+        with common.Clock() as one:
+            build(region[:1])
+        with common.Clock() as sv:
+            solver.solve()
+        with common.Clock() as total:
+            s.solve(details=False, live=True)
+        for key, value in (("guide", g.wall), ("region", rg.wall), ("rows", rows.wall), ("solver", ctor.wall),
+                           ("solver_one_face", one.wall), ("solve", sv.wall), ("total", total.wall),
+                           ("region_faces", len(region))):
+            parts[key].append(value)
+    out = {k: statistics.median(v) for k, v in parts.items()}
+    out["factorization_estimate"] = max(0.0, out["solver"] - out["rows"] - out["solver_one_face"])
+    out["rest"] = max(0.0, out["total"] - out["region"] - out["solver"] - out["solve"])
+    return out
+
+
+def comb_brush(s, rng, active, cent, normals, diag, repeats: int, timed) -> dict:
+    """`repeats` brush strokes of 24 samples, 2 per tick, each tick timed as one live edit (timed: see
+    measure_one). Returns the medians over every tick and the median whole stroke."""
+    import numpy as np
+
+    guide, solve, total, region, strokes = [], [], [], [], []
+    for _ in range(repeats):
+        f0 = int(rng.choice(active))
+        pts = cent[f0] + np.outer(np.linspace(0, 0.05 * diag, 24), np.cross(normals[f0], rng.normal(size=3)))
+        dirs = np.gradient(pts, axis=0)
+        s.begin_comb_stroke(0.03)
+        whole = 0.0
+        for k in range(0, len(pts), 2):
+            gw, sw, reg = timed(lambda k=k: s.extend_comb_stroke(pts[k:k + 2], dirs[k:k + 2]))
+            guide.append(gw), solve.append(sw), total.append(gw + sw), region.append(reg or 0)
+            whole += gw + sw
+        s.end_comb_stroke()
+        strokes.append(whole)
+    return {"guide_s": statistics.median(guide), "solve_s": statistics.median(solve),
+            "total_s": statistics.median(total), "region_faces": int(statistics.median(region)),
+            "ticks_per_stroke": 12, "stroke_s": statistics.median(strokes)}
+
+
 def table(results: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | energy | curve move (live region) | comb stroke (live region) | weight change "
-             "(live region) | target change (global, no refactor) | weight change, global refactor | global "
-             "solve after a live edit |", "|" + "---|" * 9]
+    lines = ["| mesh | faces | energy | curve move (live region) | comb brush, one tick of 2 samples (live "
+             "region) | comb stroke of 24 samples | weight change (live region) | target change (global, no "
+             "refactor) | weight change, global refactor | global solve after a live edit |", "|" + "---|" * 10]
     for r in results:
         for label in ("biharmonic", "harmonic"):
             x = r[label]
@@ -154,8 +232,26 @@ def table(results: list[dict]) -> str:
                 reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
                 return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
             lines.append(f"| {r['mesh']} | {r['faces']:,} | {label} | {cell('curve_move')} | {cell('comb_stroke')} | "
-                         f"{cell('weight_change')} | {cell('target_change')} | {f(x['weight_change_global']['total_s'])} "
-                         f"| {f(x['curve_move']['global_after_s'])} |")
+                         f"{f(x['comb_stroke']['stroke_s'])} | {cell('weight_change')} | {cell('target_change')} | "
+                         f"{f(x['weight_change_global']['total_s'])} | {f(x['curve_move']['global_after_s'])} |")
+    return "\n".join(lines)
+
+
+#: the columns of the breakdown table: (header, key of breakdown())
+BREAKDOWN_COLUMNS = (("guide", "guide"), ("region choice", "region"), ("rows of E_m", "rows"),
+                     ("solver set-up (rows + factorization + whole-mesh part)", "solver"),
+                     ("whole-mesh part alone", "solver_one_face"), ("factorization (estimate)", "factorization_estimate"),
+                     ("solve", "solve"), ("rest of solve()", "rest"))
+
+
+def breakdown_table(results: list[dict]) -> str:
+    heads = ["mesh", "live region"] + [h for h, _ in BREAKDOWN_COLUMNS] + ["total"]
+    lines = ["| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
+    for r in results:
+        b = r["biharmonic"]["curve_move"].get("breakdown")
+        if b:
+            cells = [r["mesh"], f"{int(b['region_faces']):,}"] + [common.fmt_ms(b[k]) for _, k in BREAKDOWN_COLUMNS]
+            lines.append("| " + " | ".join(cells + [common.fmt_ms(b["guide"] + b["total"])]) + " |")
     return "\n".join(lines)
 
 
@@ -163,7 +259,7 @@ def targets(results: list[dict]) -> list[dict]:
     out = []
     for r in results:
         x = r["biharmonic"]
-        for key, what in (("curve_move", "moving a curve"), ("comb_stroke", "one comb stroke"),
+        for key, what in (("curve_move", "moving a curve"), ("comb_stroke", "the comb brush (one tick)"),
                           ("weight_change", "a weight change")):
             ms = 1000 * x[key]["total_s"]
             out.append({"what": f"{what}, {r['mesh']} ({r['faces']:,} faces), biharmonic, live", "median_ms": ms,
@@ -190,7 +286,7 @@ def main() -> int:
     md = "\n".join(["# Live guide edits (exact session)", "", table(results), "",
                     "Medians of " + str(repeats) + " edits. total = guide computation + solve; live edits solve a "
                     "region around the changed faces exactly with the rest held fixed (docs/guides.md, section 7).",
-                    ""])
+                    "", "Where the time of a biharmonic curve move goes (medians):", "", breakdown_table(results), ""])
     common.write_results("guides_quick" if args.quick else "guides", doc, md)
     print(json.dumps(doc, indent=2))
     print(md)

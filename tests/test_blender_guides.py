@@ -47,6 +47,21 @@ def _api(nf):
     return blender_module(nf, "api")
 
 
+def _still(name, V, F):
+    """A mesh object from arrays with Live Update off (the test solves when it wants)."""
+    obj = object_from_arrays(name, V, F)
+    obj.nfield.live_update = False
+    return obj
+
+
+def _ellipsoid(name="ellipsoid"):
+    """(object, V, F): an icosphere scaled to an ellipsoid (symmetric about every coordinate plane, with
+    varying curvature), Live Update off."""
+    V, F = meshgen.icosphere(3)
+    V = V * [1.0, 0.8, 0.6]
+    return _still(name, V, F), V, F
+
+
 def _edge_directions(V, pairs):
     d = V[pairs[:, 1]] - V[pairs[:, 0]]
     return d / np.linalg.norm(d, axis=1)[:, None]
@@ -104,8 +119,7 @@ def test_hard_features_from_marked_sharp_edges(scene):
     api = _api(nf)
     mesh = _core(nf).Mesh.from_file(DATA / "fandisk.obj")
     V, F = np.asarray(mesh.vertices), np.asarray(mesh.faces)
-    obj = object_from_arrays("fandisk", V, F)
-    obj.nfield.live_update = False
+    obj = _still("fandisk", V, F)
     pairs = _dihedral_sharp_edges(V, F, 30.0)
     assert _mark_sharp(obj, pairs) == len(pairs) > 100
     plain = api.solve(obj, n=4, order=2, align="curvature-max", strength=1.0, write=False)
@@ -137,8 +151,7 @@ def test_region_borders_are_the_features(scene, source):
     nf = scene
     api = _api(nf)
     V, F = meshgen.icosphere(3)
-    obj = object_from_arrays("sphere", V, F)
-    obj.nfield.live_update = False
+    obj = _still("sphere", V, F)
     cent = V[F].mean(axis=1)
     labels = (cent[:, 2] > 0.3).astype(np.int64) + (cent[:, 0] > 0.5).astype(np.int64) * 2
     me = obj.data
@@ -168,10 +181,7 @@ def _face_attribute(obj, name, values):
 def test_rotation_attribute_turns_a_line_field_by_its_angle(scene):
     nf = scene
     api = _api(nf)
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("ellipsoid", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid()
     plain = np.asarray(api.solve(obj, n=2, order=2, align="curvature-max", write=False).directions)
     _face_attribute(obj, "turn", np.full(len(F), math.pi / 2))
     api.set_guide_attributes(obj, rotation="turn")
@@ -184,10 +194,7 @@ def test_weight_attribute_matches_core(scene):
     nf = scene
     core = _core(nf)
     api = _api(nf)
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("ellipsoid", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid()
     cent = V[F].mean(axis=1)
     w = np.where(cent[:, 0] > 0, 0.0, 3.0).astype(np.float32)  # no alignment at all on the x > 0 half
     _face_attribute(obj, "w", w)
@@ -220,6 +227,21 @@ def _poly_curve(name, points):
     return ob
 
 
+def _move_curve(curve, points):
+    """New points for the first spline of a poly curve object, and the depsgraph update that follows an edit."""
+    for p, xyz in zip(curve.data.splines[0].points, points):
+        p.co = (*xyz, 1.0)
+    curve.data.update_tag()
+    bpy.context.view_layer.update()
+
+
+def _line_deviation(result, faces, direction):
+    """Per face: degrees between the line of `direction` and the nearest of the field's directions."""
+    u = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
+    alld = np.asarray(result.all_directions())
+    return [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+
+
 def _faces_along(V, F, start, direction, tol):
     """Faces whose centroid lies within `tol` of the line start + t direction. With `tol` below the inradius
     (grid triangles: right isosceles with legs h, inradius (2 - sqrt 2) h / 2 = 0.29 h) the line crosses them."""
@@ -245,23 +267,16 @@ def test_curve_guide_follows_the_curve_and_its_edits(scene):
     faces = _faces_along(V, F, start, d1, 0.25 * h)
     faces = faces[(V[F].mean(axis=1)[faces, 0] > 0.15) & (V[F].mean(axis=1)[faces, 0] < 0.8)]
     assert len(faces) >= 8
-    u = d1 / np.linalg.norm(d1)
-    alld = np.asarray(result.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(result, faces, d1)
     assert max(dev) < 1.0, max(dev)
     # move the curve: a new direction; the depsgraph handler re-solves (Live Update) with the new curve
     d2 = np.array([0.4, 1.0, 0.0])
-    for p, xyz in zip(curve.data.splines[0].points, [start + t * d2 for t in np.linspace(0, 0.75, 9)]):
-        p.co = (*xyz, 1.0)
-    curve.data.update_tag()
-    bpy.context.view_layer.update()
+    _move_curve(curve, [start + t * d2 for t in np.linspace(0, 0.75, 9)])
     moved = api.field(obj)
     assert moved is not result, "editing the curve did not re-solve"
     faces = _faces_along(V, F, start, d2, 0.25 * h)
     faces = faces[(V[F].mean(axis=1)[faces, 1] > 0.25) & (V[F].mean(axis=1)[faces, 1] < 0.9)]
-    u = d2 / np.linalg.norm(d2)
-    alld = np.asarray(moved.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(moved, faces, d2)
     assert len(faces) >= 8 and max(dev) < 1.0, (len(faces), max(dev) if dev else None)
     api.remove_curve_guide(obj, curve)
     assert len(obj.nfield_guides.curves) == 0
@@ -271,10 +286,7 @@ def test_mirror_symmetry_exact_and_refusal(scene):
     nf = scene
     core = _core(nf)
     api = _api(nf)
-    V, F = meshgen.icosphere(3)
-    V = V * [1.0, 0.8, 0.6]
-    obj = object_from_arrays("ellipsoid", V, F)
-    obj.nfield.live_update = False
+    obj, V, F = _ellipsoid()
     info = api.set_mirror_symmetry(obj, "x")
     assert info["matched"] == len(F) and info["unmatched"] == []
     cent = V[F].mean(axis=1)
@@ -307,8 +319,7 @@ def test_seams_cut_the_field(scene):
     nf = scene
     api = _api(nf)
     V, F = meshgen.grid(21, 21)
-    obj = object_from_arrays("slit", V, F)
-    obj.nfield.live_update = False
+    obj = _still("slit", V, F)
     idx = np.arange(21 * 21).reshape(21, 21)
     slit = np.array([(idx[10, j], idx[10, j + 1]) for j in range(0, 16)])
     me = obj.data
@@ -340,8 +351,7 @@ def test_guides_persist_in_the_blend(scene, tmp_path):
     nf = scene
     api = _api(nf)
     V, F = meshgen.icosphere(2)
-    obj = object_from_arrays("keep", V, F)
-    obj.nfield.live_update = False
+    obj = _still("keep", V, F)
     curve = _poly_curve("keep_curve", [(0, 0, 1.2), (0.5, 0.5, 1.0)])
     api.set_feature_alignment(obj, boundary=False, dihedral=True, angle=5.0, mode="hard", every=2)
     api.add_curve_guide(obj, curve, mode="soft", weight=2.5, tolerance=0.5)
@@ -357,6 +367,38 @@ def test_guides_persist_in_the_blend(scene, tmp_path):
     api.solve(bpy.data.objects["keep"], write=False)
     report = api.guide_report(bpy.data.objects["keep"])
     assert report["symmetry"]["axis"] == "z" and report["feature_edges"] > 0
+
+
+def test_guide_edits_undo_and_redo(scene):
+    """Guide edits are undo steps like the rest of the design: feature settings (obj.nfield_guides) and a comb
+    stroke (the comb face attributes, one step per stroke) come and go with undo / redo, and the next solve
+    uses what the restored state holds."""
+    nf = scene
+    api = _api(nf)
+    reader = blender_module(nf, "guides")
+    obj, V, F = _ellipsoid("undo_guides")
+    api.solve(obj, n=4, order=2, align="curvature-max", write=False)
+    bpy.ops.ed.undo_push(message="start")
+    api.set_feature_alignment(obj, boundary=False, dihedral=True, angle=5.0, mode="soft")
+    bpy.ops.ed.undo_push(message="features")
+    samples = [{"name": "", "location": tuple(V[F[0]].mean(axis=0)), "direction": (0.0, 0.0, 1.0)}]
+    assert bpy.ops.nfield.comb_stroke(samples=samples, radius=0.1) == {"FINISHED"}
+    bpy.ops.ed.undo_push(message="comb")
+    combed = reader.comb_field(bpy.data.objects["undo_guides"])
+    assert combed is not None and combed[1].max() > 0
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects["undo_guides"]
+    assert reader.comb_field(obj) is None and obj.nfield_guides.use_features  # the stroke only
+    assert bpy.ops.ed.undo() == {"FINISHED"}
+    obj = bpy.data.objects["undo_guides"]
+    assert not obj.nfield_guides.use_features
+    api.solve(obj, write=False)
+    assert api.guide_report(obj)["feature_edges"] == 0
+    assert bpy.ops.ed.redo() == {"FINISHED"} and bpy.ops.ed.redo() == {"FINISHED"}
+    obj = bpy.data.objects["undo_guides"]
+    assert obj.nfield_guides.use_features and np.array_equal(reader.comb_field(obj)[1], combed[1])
+    api.solve(obj, write=False)
+    assert api.guide_report(obj)["feature_edges"] > 0
 
 
 def test_curve_sources_are_read_in_the_mesh_space(scene):
@@ -402,13 +444,76 @@ def test_curve_sources_are_read_in_the_mesh_space(scene):
     assert np.allclose(lines[0] * 2.0 + [1, 0, 0], pts[:3]) and np.allclose(lines[1] * 2.0 + [1, 0, 0], pts[4:])
 
 
+def _grease_pencil(name, strokes, layer_offset, frame=1):
+    """A Grease Pencil object of this Blender (legacy GPENCIL up to 4.2, GREASEPENCIL from 4.3) whose layer
+    "guides" is moved by `layer_offset` and holds `strokes` (lists of points) at `frame`; a hidden layer
+    holds a stroke far away. Returns (object, kind) or (None, reason)."""
+    data = getattr(bpy.data, "grease_pencils_v3", None) or getattr(bpy.data, "grease_pencils", None)
+    if data is None:
+        return None, f"Blender {bpy.app.version_string} has no Grease Pencil data"
+    gp = data.new(name)
+    ob = bpy.data.objects.new(name, gp)
+    bpy.context.collection.objects.link(ob)
+    for layer_name, lines, hidden in (("guides", strokes, False), ("hidden", [[(9, 9, 9), (9, 8, 9)]], True)):
+        layer = gp.layers.new(layer_name)
+        fr = layer.frames.new(frame)
+        if ob.type == "GREASEPENCIL":
+            drawing = fr.drawing
+            drawing.add_strokes([len(p) for p in lines])
+            drawing.attributes["position"].data.foreach_set("vector", np.concatenate(lines).astype(np.float32).ravel())
+            layer.translation = layer_offset
+        else:
+            for pts in lines:
+                stroke = fr.strokes.new()
+                stroke.points.add(len(pts))
+                stroke.points.foreach_set("co", np.asarray(pts, dtype=np.float32).ravel())
+            layer.location = layer_offset
+        layer.hide = hidden
+    return ob, ob.type
+
+
+def test_grease_pencil_strokes_are_curve_guides(scene):
+    """A Grease Pencil object (this Blender's kind) is a curve source: its visible strokes at the current
+    frame, with the object's and the layer's transform, in the mesh's object space; as a hard guide on a flat
+    grid the faces the stroke crosses point along it (1 degree, as for curve objects)."""
+    nf = scene
+    api = _api(nf)
+    reader = blender_module(nf, "guides")
+    V, F = meshgen.grid(25, 25)
+    obj = _still("gp_plate", V, F)
+    obj.location = (1.0, 0.0, 0.0)
+    obj.scale = (2.0, 2.0, 2.0)
+    start, d = np.array([0.2, 0.3, 0.0]), np.array([1.0, 0.45, 0.0])
+    # in the plate's space the stroke runs start + t d; in world space that is 2 (start + t d) + (1, 0, 0); the
+    # GP object sits at (1, 0, 0) and its layer is moved by (0, 0.5, 0): the stored points are 2 (start + t d)
+    # - (0, 0.5, 0)
+    inside = [start + t * d for t in np.linspace(0, 0.8, 9)]
+    stored = [2.0 * p - np.array([0.0, 0.5, 0.0]) for p in inside]
+    gp, kind = _grease_pencil("gp_guide", [stored, stored[:1]], (0.0, 0.5, 0.0))  # a one-point stroke: skipped
+    if gp is None:
+        print(f"SKIP: {kind}")
+        pytest.skip(kind)
+    print(f"Blender {bpy.app.version_string}: Grease Pencil object type {kind}")
+    gp.location = (1.0, 0.0, 0.0)
+    bpy.context.scene.frame_set(1)
+    bpy.context.view_layer.update()
+    (line,) = reader.curve_polylines(gp, obj)  # the hidden layer's stroke is not read
+    assert np.allclose(line, inside, atol=1e-5)  # float32 points
+    api.add_curve_guide(obj, gp, mode="hard", tolerance=0.02)
+    result = api.solve(obj, n=4, order=2, align="none", write=False)
+    assert api.guide_report(obj)["hard_constraints"] > 0
+    faces = _faces_along(V, F, start, d, 0.25 / 24)
+    faces = faces[(V[F].mean(axis=1)[faces, 0] > 0.25) & (V[F].mean(axis=1)[faces, 0] < 0.9)]
+    dev = _line_deviation(result, faces, d)
+    assert len(faces) >= 8 and max(dev) < 1.0, (len(faces), max(dev) if dev else None)
+
+
 def test_guide_operators(scene):
     """The operators: add the selected curve objects as guides, remove one, mirror the design (one undo
     step each; errors reported, not raised from Python as tracebacks)."""
     nf = scene
     V, F = meshgen.icosphere(3)
-    obj = object_from_arrays("ball", V, F)
-    obj.nfield.live_update = False
+    obj = _still("ball", V, F)
     c1 = _poly_curve("c1", [(0, -1.2, 0.2), (0.0, -0.2, 1.2)])
     c2 = _poly_curve("c2", [(-1.2, 0, 0.2), (-0.2, 0.0, 1.2)])
     for o in (obj, c1, c2):
@@ -431,6 +536,85 @@ def test_guide_operators(scene):
     assert faces == sorted([face, mirror])
     m = obj.nfield.constraints[[c.face for c in obj.nfield.constraints].index(mirror)]
     assert np.allclose(tuple(m.direction), (-0.2, 0.3, 1.0))  # reflected about x: the x component flips
+
+
+def _tool_probe(tool_cls, base_cls, **state):
+    """An object carrying a modal tool's methods and the state its press would set up, so that its live-edit
+    steps run headless (no window, no event)."""
+    probe = type("Probe", (), {})()
+    for cls in (base_cls, tool_cls):
+        for name, value in vars(cls).items():
+            if callable(value) and name.startswith("_") and not name.startswith("__"):
+                setattr(type(probe), name, value)
+    probe.__dict__.update(state, report=lambda *a, **k: None)
+    return probe
+
+
+def test_design_tools_mirror_what_they_place(scene):
+    """With mirror symmetry on, the constraint and singularity tools place the mirror image of what they
+    place on the partner face / vertex in the same step (their live-edit steps run here through the
+    api helper they call), and the comb mirrors its samples; a face without a partner is said so."""
+    import types
+
+    from mathutils import Vector
+
+    nf = scene
+    api = _api(nf)
+    common = blender_module(nf, "tool_common")
+    obj, V, F = _ellipsoid("mirror_tools")
+    api.solve(obj, n=4, order=2, align="curvature-max", write=False)
+    api.set_mirror_symmetry(obj, "x")
+    _, entry, session = api.open_session(obj)
+    ctx = types.SimpleNamespace(area=None, workspace=None)
+    cent = V[F].mean(axis=1)
+    face = int(np.argmax(cent[:, 0] + 0.1 * cent[:, 1]))
+    partner = int(np.argmin(np.linalg.norm(cent - cent[face] * [-1, 1, 1], axis=1)))  # the reflected centroid
+    assert partner != face
+    tool = blender_module(nf, "tool_constraint").NFIELD_OT_constraint_tool
+    probe = _tool_probe(tool, common.ModalViewportTool, _session=session, _entry=entry, _face=face,
+                        _accepted={}, _note="")
+    normal = np.cross(V[F[face, 1]] - V[F[face, 0]], V[F[face, 2]] - V[F[face, 0]])
+    d = np.cross(normal, [0.0, 0.3, 1.0])
+    assert probe._apply(ctx, obj, Vector(d.tolist()))
+    stored = {c.face: np.array(c.direction) for c in obj.nfield.constraints}
+    assert sorted(stored) == sorted([face, partner])
+    assert np.allclose(stored[partner], stored[face] * [-1, 1, 1])  # reflected about x
+    core = _core(nf)
+    arrays = blender_module(nf, "mesh_read").mesh_arrays(obj)
+    mm = core.native().MirrorMap(core.Mesh(arrays.vertices, arrays.triangles).native, "x", 0.0, 1e-9)
+    assert mm.asymmetry(api.field(obj).representation, 4) < 1e-8
+    # the singularity tool: the same index at the mirror vertex
+    vertex = int(np.argmax(V[:, 0] + 0.2 * V[:, 1] + 0.1 * V[:, 2]))
+    mirror_vertex = int(np.argmin(np.linalg.norm(V - V[vertex] * [-1, 1, 1], axis=1)))
+    stool = blender_module(nf, "tool_singularity").NFIELD_OT_singularity_tool
+    placed, note = api.mirror_placements(session, core.SingularityConstraint(vertex, 0.25))
+    assert [s.vertex for s in placed] == [vertex, mirror_vertex] and note == ""
+    probe = _tool_probe(stool, common.ModalViewportTool, _session=session, _entry=entry, _vertex=vertex,
+                        _before={s.vertex: None for s in placed}, _numerator=1, _changed=False, _note="",
+                        _valid=[-1, 1], _explain="")
+    assert probe._preview(ctx, obj, 1)
+    assert sorted((s.vertex, s.numerator) for s in obj.nfield.singularities) == sorted(
+        [(vertex, 1), (mirror_vertex, 1)])
+    # the comb: api.comb(mirror=True) (what the comb tool calls per batch): the comb field is symmetric
+    api.comb(obj, [cent[face]], [d], radius=0.1, mirror=True)
+    dirs, weights = blender_module(nf, "guides").comb_field(obj)
+    assert weights[face] > 0 and abs(weights[partner] - weights[face]) < 1e-6
+    # the same cross (the stored direction is one of its 4 arms): reflected, up to a multiple of 90 degrees
+    c = float(dirs[partner] @ (dirs[face] * [-1, 1, 1]))
+    assert min(abs(abs(c) - 1.0), abs(c)) < 1e-5, c
+    # a vertex moved off its mirror image: partial symmetry, and the tools say what has no partner
+    api.set_mirror_symmetry(obj, None)
+    lonely = int(np.argmax(V[:, 0]))
+    obj.data.vertices[lonely].co.y += 0.05
+    obj.data.update()
+    api.set_mirror_symmetry(obj, "x", partial=True)
+    _, entry, session = api.open_session(obj)
+    unmatched = session.symmetry_info["unmatched"]
+    assert unmatched
+    placed, note = api.mirror_placements(session, core.DirectionConstraint(unmatched[0], (0.0, 1.0, 0.0)))
+    assert len(placed) == 1 and f"face {unmatched[0]} has no mirror partner" in note
+    _, _, note = api.comb_samples(session, [cent[unmatched[0]]], [(0.0, 1.0, 0.0)])
+    assert "1 of 1 comb samples lie on faces without a mirror partner" in note
 
 
 class _Layout:
@@ -471,8 +655,7 @@ def test_guides_panel_draws_every_setting(scene):
     nf = scene
     panels = blender_module(nf, "guide_panels")
     V, F = meshgen.icosphere(2)
-    obj = object_from_arrays("panel", V, F)
-    obj.nfield.live_update = False
+    obj = _still("panel", V, F)
     c = _poly_curve("pc", [(0, -1.2, 0.2), (0.0, -0.2, 1.2)])
     blender_module(nf, "api").add_curve_guide(obj, c)
 
@@ -514,19 +697,14 @@ def test_curve_edit_is_solved_live_in_a_window(scene, monkeypatch):
     monkeypatch.setattr(jobs, "interactive", lambda: True)
     monkeypatch.setattr(jobs, "start_later", lambda name: launched.append(name))
     d2 = np.array([0.4, 1.0, 0.0])
-    for p, xyz in zip(curve.data.splines[0].points, [start + t * d2 for t in np.linspace(0, 0.4, 9)]):
-        p.co = (*xyz, 1.0)
-    curve.data.update_tag()
-    bpy.context.view_layer.update()
+    _move_curve(curve, [start + t * d2 for t in np.linspace(0, 0.4, 9)])
     live = api.field(obj)
     assert live.live_region is not None and 0 < live.live_region < len(F), live.live_region
     assert launched == ["grid_live"]
     h = 1.0 / 59
     faces = _faces_along(V, F, start, d2, 0.25 * h)
     faces = faces[(V[F].mean(axis=1)[faces, 1] > 0.35) & (V[F].mean(axis=1)[faces, 1] < 0.65)]
-    u = d2 / np.linalg.norm(d2)
-    alld = np.asarray(live.all_directions())
-    dev = [math.degrees(math.acos(min(1.0, float(np.abs(alld[f] @ u).max())))) for f in faces]
+    dev = _line_deviation(live, faces, d2)
     # a soft pull of weight 50 and no other alignment term: the faces on the curve take its direction (measured
     # 3e-5 degrees; 1 degree is the bound of the hard guides); the old curve, 42 degrees away, no longer pulls
     assert len(faces) >= 6 and max(dev) < 1.0, (len(faces), max(dev))

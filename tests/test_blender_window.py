@@ -21,15 +21,18 @@ Checks:
   while it computes (settings restored, the status says cancelled, the UI updated the progress meanwhile),
   a small one runs to the end (spectral mode, basis ready, the field solved in the basis);
 * a settings change that needs a new factorization is solved by the background operator's worker thread;
-* the toolbar: the two nfield tools in groups of their own after the transform tools and a separator, and
-  every toolbar query Blender makes succeeds for every tool; no ``Traceback`` in the console from start to
-  quit;
+* the toolbar: the three nfield tools (constraint, singularity, comb) in groups of their own after the
+  transform tools and a separator, and every toolbar query Blender makes succeeds for every tool; no
+  ``Traceback`` in the console from start to quit;
 * pressing the constraint's arrowhead (over a neighbouring face) and dragging re-aims that constraint;
 * at the sidebar's default width the split-layout labels, the full-width buttons and the wrapped message
   lines fit (measured with ``blf`` in the UI font, not read from pixels); the panel is drawn as a popover
   and kept as tests/artifacts/blender_panel.png;
 * an undo to a state whose solve needs a spectral basis hands that solve to the worker: the UI timer keeps
   ticking (see _check_undo for the bound).
+test_comb_brush_in_real_window (tests/blender_scripts/window_comb.py) drags the comb brush across the Stanford
+bunny: the comb attribute along the stroke, its direction against the drag measured with Blender's own ray
+casts, the solved field turning to it, one undo removing exactly the stroke; tests/artifacts/comb_tool.png.
 Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing.
 """
 from __future__ import annotations
@@ -87,13 +90,75 @@ def _xdo(env, *args):
     subprocess.run(["xdotool", *map(str, args)], env=env, check=True, timeout=30)
 
 
+def _start_xvfb(tmp_path):
+    """(environment for GUI Blender on a fresh Xvfb display with a temporary user profile, the Xvfb process,
+    the console log file). Skips the test (reason printed) without Xvfb, xdotool or Blender."""
+    reason = _missing()
+    if reason:
+        print(f"SKIP: {reason}")
+        pytest.skip(reason)
+    display = _free_display()
+    env = system_blender_env()
+    env["DISPLAY"] = f":{display}"
+    env["LIBGL_ALWAYS_SOFTWARE"] = "1"  # mesa llvmpipe
+    for key in ("BLENDER_USER_CONFIG", "BLENDER_USER_SCRIPTS", "BLENDER_USER_DATAFILES"):
+        env[key] = str(tmp_path / key.lower())
+    env.pop("PYTHONPATH", None)
+    env["NFIELD_CACHE_DIR"] = str(tmp_path / "bases")
+    xvfb = subprocess.Popen(["Xvfb", f":{display}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(1.0)
+    assert xvfb.poll() is None, "Xvfb did not start"
+    return env, xvfb, open(tmp_path / "blender.log", "w")
+
+
+def _start_blender(env, script, args, log):
+    """GUI Blender running `script` with `args` (the first: the work directory, created here)."""
+    Path(args[0]).mkdir()
+    return subprocess.Popen(
+        [BLENDER, "--factory-startup", "-noaudio", "--window-geometry", "0", "0", "1280", "800",
+         "--python", str(script), "--", *map(str, args)],
+        env=env, stdout=log, stderr=subprocess.STDOUT)
+
+
+def _stop(blender, xvfb, log) -> str:
+    """Stop Blender (if still running) and Xvfb; returns Blender's console output (its end printed)."""
+    if blender is not None and blender.poll() is None:
+        blender.kill()
+    xvfb.terminate()
+    xvfb.wait(timeout=10)
+    log.close()
+    console = Path(log.name).read_text()
+    print(console[-3000:])
+    return console
+
+
+def _assert_no_traceback(console: str) -> None:
+    """Nothing raised anywhere from start to quit (a toolbar query, a draw callback, a handler, a timer)."""
+    assert "Traceback" not in console, console[console.index("Traceback") - 200:][:3000]
+
+
+def _blender_window_id(env) -> str:
+    wid = subprocess.run(["xdotool", "search", "--onlyvisible", "--name", "Blender"], env=env,
+                         capture_output=True, text=True, timeout=30).stdout.split()
+    assert wid, "no Blender window found"
+    return wid[-1]
+
+
+def _drag(env, win, points, pause=0.15):
+    """Move the mouse through `points` (window pixels) with the left button held (already pressed)."""
+    for x, y in points:
+        _xdo(env, "mousemove", "--window", win, round(x), round(y))
+        time.sleep(pause)
+
+
 def _check_toolbar(toolbar):
     """The nfield tools sit in groups of their own at the top level, after the transform block, and no
     toolbar query raises."""
     layout = toolbar["layout"]
     print("toolbar:", json.dumps(layout))
     assert toolbar["query_errors"] == [], toolbar["query_errors"]
-    ours = {"nfield.tool_constraint", "nfield.tool_singularity"}
+    ours = {"nfield.tool_constraint", "nfield.tool_singularity", "nfield.tool_comb"}
     groups = [item for item in layout if isinstance(item, list)]
     assert all(None not in g for g in groups), "a separator inside a toolbar group"
     holding = [g for g in groups if ours & set(g)]
@@ -158,39 +223,16 @@ def _check_undo(undo):
 
 
 def test_constraint_drag_in_real_window(tmp_path, addon_zip):
-    reason = _missing()
-    if reason:
-        print(f"SKIP: {reason}")
-        pytest.skip(reason)
-    display = _free_display()
-    env = system_blender_env()
-    env["DISPLAY"] = f":{display}"
-    env["LIBGL_ALWAYS_SOFTWARE"] = "1"  # mesa llvmpipe
-    for key in ("BLENDER_USER_CONFIG", "BLENDER_USER_SCRIPTS", "BLENDER_USER_DATAFILES"):
-        env[key] = str(tmp_path / key.lower())
-    env.pop("PYTHONPATH", None)
-    env["NFIELD_CACHE_DIR"] = str(tmp_path / "bases")
-    xvfb = subprocess.Popen(["Xvfb", f":{display}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    env, xvfb, log = _start_xvfb(tmp_path)
     blender = None
-    log = open(tmp_path / "blender.log", "w")
     try:
-        time.sleep(1.0)
-        assert xvfb.poll() is None, "Xvfb did not start"
         work = tmp_path / "work"
-        work.mkdir()
-        blender = subprocess.Popen(
-            [BLENDER, "--factory-startup", "-noaudio", "--window-geometry", "0", "0", "1280", "800",
-             "--python", str(SCRIPT), "--", str(work), str(addon_zip)],
-            env=env, stdout=log, stderr=subprocess.STDOUT)
+        blender = _start_blender(env, SCRIPT, [work, addon_zip], log)
         ready = _wait_file(work / "ready.json", blender, 180)
         if "error" in ready:
             raise AssertionError(ready["error"])
         assert ready["active_tool"] == "nfield.tool_constraint", ready
-        wid = subprocess.run(["xdotool", "search", "--onlyvisible", "--name", "Blender"], env=env,
-                             capture_output=True, text=True, timeout=30).stdout.split()
-        assert wid, "no Blender window found"
-        win = wid[-1]
+        win = _blender_window_id(env)
         (px, py), (tx, ty) = ready["press_window"], ready["target_window"]
         _xdo(env, "mousemove", "--window", win, px, py)
         time.sleep(0.5)
@@ -237,16 +279,9 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
             undo = _wait_file(work / "undo.json", blender, 300)
         blender.wait(timeout=60)
     finally:
-        if blender is not None and blender.poll() is None:
-            blender.kill()
-        xvfb.terminate()
-        xvfb.wait(timeout=10)
-        log.close()
-    console = (tmp_path / "blender.log").read_text()
-    print(console[-3000:])
+        console = _stop(blender, xvfb, log)
     assert "error" not in result, result.get("error")
-    # Nothing raised anywhere from start to quit (a toolbar query, a draw callback, a handler, a timer).
-    assert "Traceback" not in console, console[console.index("Traceback") - 200:][:3000]
+    _assert_no_traceback(console)
     _check_toolbar(ready["toolbar"])
     _check_reaim(json.loads((work / "reaim.json").read_text()), json.loads((work / "ready2.json").read_text()))
     _check_panel(json.loads((work / "panel.json").read_text()))
@@ -304,3 +339,100 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
     period = 2 * math.pi / n
     off = min(ang % period, period - ang % period)
     assert math.degrees(off) < 1.0, f"attribute at face {face} is {math.degrees(off):.2f} deg off symmetry"
+
+
+COMB_SCRIPT = ROOT / "tests" / "blender_scripts" / "window_comb.py"
+
+
+def _angle_mod(a, b, n) -> float:
+    """Degrees between the lines of a and b up to the n-symmetry (a multiple of 360 / n)."""
+    a, b = [float(x) for x in a], [float(x) for x in b]
+    na, nb = math.sqrt(sum(x * x for x in a)), math.sqrt(sum(x * x for x in b))
+    ang = math.degrees(math.acos(max(-1.0, min(1.0, sum(x * y for x, y in zip(a, b)) / (na * nb)))))
+    period = 360.0 / n
+    return min(ang % period, period - ang % period)
+
+
+def test_comb_brush_in_real_window(tmp_path, addon_zip):
+    """The comb tool on the Stanford bunny (69,451 faces) in Debian's Blender 3.4 under Xvfb: a horizontal
+    drag across the body (tests/blender_scripts/window_comb.py) paints the comb attribute along the stroke
+    in the drag's direction, the solved field there turns to it, and one undo removes the stroke."""
+    env, xvfb, log = _start_xvfb(tmp_path)
+    blender = None
+    try:
+        work = tmp_path / "work"
+        blender = _start_blender(env, COMB_SCRIPT, [work, addon_zip, ROOT / "tests" / "data" / "stanford-bunny.obj"],
+                                 log)
+        ready = _wait_file(work / "ready.json", blender, 300)
+        if "error" in ready:
+            raise AssertionError(ready["error"])
+        assert ready["active_tool"] == "nfield.tool_comb", ready
+        win = _blender_window_id(env)
+        path = ready["path_window"]
+        _xdo(env, "mousemove", "--window", win, *path[0])
+        time.sleep(0.5)
+        _xdo(env, "mousedown", 1)
+        _wait_file(work / "pressed.json", blender, 60)  # Blender handled the press: now drag
+        _drag(env, win, path[1:])
+        time.sleep(1.0)  # the live solves catch up (one per timer tick)
+        _xdo(env, "mouseup", 1)
+        time.sleep(0.5)
+        mid = path[len(path) // 2]
+        _xdo(env, "mousemove", "--window", win, mid[0], mid[1])  # the brush circle in the screenshot
+        time.sleep(0.5)
+        (work / "dragged").write_text("1")
+        result = _wait_file(work / "result.json", blender, 400)
+        undo = _wait_file(work / "undo.json", blender, 400) if "error" not in result else {}
+        blender.wait(timeout=60)
+    finally:
+        console = _stop(blender, xvfb, log)
+    assert "error" not in result, result.get("error")
+    _assert_no_traceback(console)
+    stroke = result["stroke"]
+    print("stroke:", json.dumps(stroke), "background:", json.dumps(result["background"]))
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(result["screenshot"], ARTIFACTS / "comb_tool.png")
+    (ARTIFACTS / "comb_tool.json").write_text(json.dumps(result, indent=1))
+    # a drag of about 240 px with samples every quarter of the 40 px radius leaves about 24 samples
+    assert stroke["samples"] >= 12 and stroke["changed"] > 0, stroke
+    assert result["background"]["state"] == "finished", result["background"]
+    n = result["n"]
+    # the faces seen within 0.3 radius of the path, more than a radius from its ends (the path is 6 radii
+    # long: 0.2 .. 0.8 of it), facing the view within 37 degrees (cos > 0.8)
+    core = [f for f in result["faces"] if f["facing"] > 0.8 and 0.2 <= f["t"] <= 0.8]
+    assert len(core) >= 20, len(core)
+    # comb weight: the nearest sample is within sqrt(0.3^2 + 0.125^2) = 0.33 radius on screen (samples at most
+    # 0.25 radius apart), so on a flat stretch facing the view the smooth falloff (1 - t^2)^2 at strength 1
+    # is >= 0.80 and most faces are near 1; the scan's bumps tilt the surface between a face and its nearest
+    # sample (space distances exceed screen distances): >= 0.5 everywhere still means within 0.54 radius of a
+    # sample in space (measured: median 0.98, least 0.59)
+    weights = sorted(f["weight"] for f in core)
+    assert weights[0] >= 0.5 and weights[len(weights) // 2] >= 0.9, (weights[0], weights[len(weights) // 2])
+    assert result["far_weights"] and max(result["far_weights"]) == 0.0, result["far_weights"][:20]
+    # the combed direction is a weighted mean (in representation space) of the drag's chords near the face,
+    # projected into it; each chord between two mouse positions is a sum of the fine chords the script measured
+    # with Blender's own ray cast, so the combed direction lies in their cone. 0.05 degrees: float32 storage
+    # of the direction (1e-7) and the ray casts of two BVHs of the same float32 mesh, with a wide margin
+    outside = [(f["face"], f["cone"]) for f in core if not (f["cone"][0] - 0.05 <= 0.0 <= f["cone"][1] + 0.05)]
+    widths = sorted(f["cone"][1] - f["cone"][0] for f in core)
+    print("chord cones: median width %.2f deg, widest %.2f deg" % (widths[len(widths) // 2], widths[-1]))
+    assert not outside, outside[:10]
+    # the solved field turns to the combed direction: the comb is a soft pull (weight >= 0.5 in units of the
+    # smoothness at the face, docs/guides.md) along a band whose faces are all combed alike, against the
+    # curvature alignment (weight 1 in units of the global strength), so the field there follows the comb
+    # closely (measured: median 0.1 degrees, at most 3.4 on a face where the scan bends sharply); the drag was
+    # chosen 45 degrees off the mean field around it, so without the comb the median deviation is large
+    # (30 to 40 degrees here: the curvature field turns along the path)
+    field_dev = sorted(_angle_mod(f["field"], f["comb"], n) for f in core)
+    before_dev = sorted(_angle_mod(f["field_before"], f["comb"], n) for f in core)
+    print("field vs comb (deg): max %.2f median %.2f; before the stroke: median %.2f min %.2f" % (
+        field_dev[-1], field_dev[len(field_dev) // 2], before_dev[len(before_dev) // 2], before_dev[0]))
+    assert field_dev[-1] < 10.0 and field_dev[len(field_dev) // 2] < 1.0, field_dev[-5:]
+    assert before_dev[len(before_dev) // 2] > 15.0
+    # one undo removes the stroke and nothing before it: the comb attribute is gone, the marker set before
+    # the stroke (its own undo step) is still there, and the field is the one before the stroke (the same
+    # design: the remembered field or the same solve, to rounding)
+    print("undo:", json.dumps(undo))
+    assert "error" not in undo, undo.get("error")
+    assert undo["undo"] == ["FINISHED"] and not undo["has_comb"] and undo["marker"] == 1, undo
+    assert undo["from_before"] < 1e-6 < 0.1 < undo["from_stroke"], undo

@@ -205,6 +205,90 @@ def test_comb_strokes_accumulate_and_guide():
         s.comb([p], [along], radius=0)
 
 
+def test_comb_stroke_in_batches_is_one_stroke():
+    """A brush stroke fed sample by sample (begin / extend / end, as the comb tool does while the mouse moves)
+    gives exactly the comb field of one stroke of all its samples: what a face feels is a sum and a maximum
+    over the samples, both independent of order and grouping (bit-identical here: the same additions in the
+    same order). Cancelling puts the comb field back."""
+    V, F = meshgen.icosphere(4)
+    mesh = Mesh(V, F)
+    rng = np.random.default_rng(5)
+    points = V[rng.choice(len(V), 30)]
+    dirs = rng.normal(size=(30, 3))
+    a = DesignSession(mesh, n=4, order=2, align="none")
+    a.comb(points[:5], dirs[:5], radius=0.1, strength=0.7)  # an earlier stroke the new one blends with
+    before = a.comb_field
+    changed = a.comb(points, dirs, radius=0.08, falloff="linear", strength=0.6)
+    b = DesignSession(mesh, n=4, order=2, align="none")
+    b.set_comb(*before)
+    b.begin_comb_stroke(radius=0.08, falloff="linear", strength=0.6)
+    for i in range(0, 30, 4):
+        touched = b.extend_comb_stroke(points[i:i + 4], dirs[i:i + 4])
+        assert len(touched) > 0
+    assert b.comb_stroke_active
+    assert np.array_equal(b.end_comb_stroke(), changed)
+    assert np.array_equal(a.comb_field[0], b.comb_field[0]) and np.array_equal(a.comb_field[1], b.comb_field[1])
+    b.begin_comb_stroke(radius=0.08)
+    b.extend_comb_stroke(points[:3], dirs[:3])
+    b.cancel_comb_stroke()
+    assert not b.comb_stroke_active and np.array_equal(b.comb_field[1], a.comb_field[1])
+    with pytest.raises(ValueError, match="no comb stroke in progress"):
+        b.extend_comb_stroke(points[:1], dirs[:1])
+
+
+def test_live_edits_chain_from_the_last_live_solve():
+    """Successive live edits of one interaction (a brush stroke's ticks) start from the last solve, live or
+    global: the second edit's region covers only what changed since the first live solve, the faces outside
+    it keep the first live solution bit-identically, and it is the exact spline there (optimality at its free
+    faces). A live solve needs no global factorization (pending_work(live=True) is None) while the global
+    solve stays due (pending_work() says "factorization")."""
+    mesh = core_mesh("fandisk.obj")
+    s = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    s.solve()
+    cent = mesh.vertices[mesh.faces].mean(axis=1)
+    normals = np.asarray(mesh.native.face_normals)
+    diag = mesh.native.bounding_box_diagonal
+
+    def dab(face):
+        d = np.cross(normals[face], [0.3, 0.5, 0.8])
+        s.comb([cent[face]], [d], radius=0.03)
+
+    dab(100)
+    first = s.solve(details=False, live=True)
+    assert s.pending_work() == "factorization" and s.pending_work(live=True) is None
+    far = int(np.argmax(np.linalg.norm(cent - cent[100], axis=1)))  # a dab far from the first one
+    assert np.linalg.norm(cent[far] - cent[100]) > 0.3 * diag
+    dab(far)
+    second = s.solve(details=False, live=True)
+    moved = np.flatnonzero(second.raw_solution != first.raw_solution)
+    assert 0 < len(moved) <= second.live_region
+    # the region of the second edit lies around the second dab only: nothing near the first dab moved
+    assert np.linalg.norm(cent[mesh.triangle_face[moved]] - cent[100], axis=1).min() > 0.1 * diag
+    grad, scale = spline_residual(mesh, s, second)
+    assert np.abs(grad[moved]).max() < 1e-9 * scale
+    glob = s.solve(details=False)
+    assert glob.live_region is None and s.pending_work() is None
+
+
+def test_mirrored_comb_samples():
+    """The mirror images of comb samples: points and directions reflected about the plane; a sample on a
+    face without a partner (partial symmetry) has no image and is listed."""
+    V, F = meshgen.icosphere(3)
+    V = V.copy()
+    V[0] += [0.0, 0.0, 0.01]  # one vertex off: its faces have no partner
+    mesh = Mesh(V, F)
+    s = DesignSession(mesh, n=4, align="none")
+    s.set_symmetry(Symmetry("x", partial=True))
+    ring = np.flatnonzero((F == 0).any(axis=1))
+    cent = V[F].mean(axis=1)
+    good = int(np.argmax(cent[:, 1]))
+    p = np.stack([cent[good], cent[ring[0]]])
+    d = np.array([[1.0, 2.0, 3.0], [1.0, 0.0, 0.0]])
+    mp, md, unmatched = s.mirrored_samples(p, d)
+    assert unmatched == [1]
+    assert np.allclose(mp, [[-p[0, 0], p[0, 1], p[0, 2]]]) and np.allclose(md, [[-1.0, 2.0, 3.0]])
+
+
 # ---------------------------------------------------------------------------------------- cuts
 def test_cut_lets_the_field_jump():
     V, F = meshgen.grid(21, 21)
@@ -518,3 +602,47 @@ def test_spectral_mode_with_guides():
     r3 = s.solve()
     assert r3.mode == "spectral" and s._basis.mesh_hash == s._solve_native_mesh().content_hash
     assert s._basis.mesh_hash != mesh.native.content_hash
+
+
+def test_live_region_budget_and_factorization_reuse():
+    """A live edit whose full margin would exceed LIVE_REGION_BUDGET grows fewer rings (the changed faces are
+    always in); a later live edit of the same region with the same weights there (a target-only change: two
+    rotations of the same faces) reuses the region's factorization and is still the exact spline of the
+    region (optimality at its free faces)."""
+    from nfield.core import session_live
+
+    mesh = core_mesh("fandisk.obj")
+    V = mesh.vertices
+    s = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    s.solve()
+    a, b = V[np.argmin(V[:, 0])], V[np.argmax(V[:, 0])]
+    line = a + np.linspace(0.3, 0.6, 30)[:, None] * (b - a)
+    s.set_curve("c", line, width=0.03, tolerance=0.2)
+    inputs = s._solve_inputs()
+    full = s._live_region(inputs)
+    budget = session_live.LIVE_REGION_BUDGET
+    try:
+        session_live.LIVE_REGION_BUDGET = len(full) - 1
+        narrow = s._live_region(inputs)
+        assert len(narrow) < len(full) and set(narrow.tolist()) < set(full.tolist())
+        changed = np.flatnonzero((np.asarray(inputs.matrix_weight) != s._base_record.weight)
+                                 | (np.asarray(inputs.alignment) != s._base_record.value))
+        assert set(changed.tolist()) <= set(narrow.tolist())  # the changed faces are always solved
+    finally:
+        session_live.LIVE_REGION_BUDGET = budget
+    s.solve(details=False, live=True)  # the curve's live solve: the global solve is now due
+    # two rotations of the same faces: the second edit's region and weights are those of the first
+    cent = V[mesh.faces].mean(axis=1)
+    turned = np.linalg.norm(cent - cent[0], axis=1) < 0.1 * mesh.native.bounding_box_diagonal
+    theta = np.where(turned, 0.3, 0.0)
+    s.set_alignment_rotation(theta)
+    first = s.solve(details=False, live=True)
+    built, region = s._live_solver, s._live_key[1]
+    s.set_alignment_rotation(2 * theta)
+    second = s.solve(details=False, live=True)
+    assert s._live_solver is built and np.array_equal(s._live_key[1], region)  # the factorization was reused
+    assert np.abs(second.raw_solution - first.raw_solution).max() > 1e-6  # the targets did change the field
+    grad, scale = spline_residual(mesh, s, second)
+    constrained = {mesh.face_triangle(c.face) for c in s.constraints}
+    free = np.setdiff1d(region, list(constrained))
+    assert np.abs(grad[free]).max() < 1e-9 * scale

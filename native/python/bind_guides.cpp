@@ -100,9 +100,36 @@ CombField to_comb(const GuideGeometry& g, const DoubleArray& directions, const D
   return field;
 }
 
+/// A comb stroke in progress with the geometry it walks on (kept alive as long as the stroke).
+struct CombStrokeInProgress {
+  std::shared_ptr<const GuideGeometry> geometry;
+  CombStrokeState state;
+};
+
 }  // namespace
 
 void bind_guides(py::module_& m) {
+  py::class_<CombStrokeInProgress, std::shared_ptr<CombStrokeInProgress>>(
+      m, "CombStrokeInProgress", py::module_local(),
+      "A comb stroke taking its samples in batches (comb.hpp, CombStrokeState); GuideGeometry.begin_comb_stroke")
+      .def("add", [](CombStrokeInProgress& s, const DoubleArray& points, const DoubleArray& stroke_directions) {
+        const auto p = to_points(points, "stroke points"), d = to_points(stroke_directions, "stroke directions");
+        std::vector<int> reached;
+        {
+          py::gil_scoped_release release;
+          reached = s.state.add(s.geometry->frames(), s.geometry->tree(), p, d);
+        }
+        const CombField& field = s.state.field();
+        std::vector<Eigen::Vector3d> dirs;
+        py::array_t<double> w(static_cast<py::ssize_t>(reached.size()));
+        for (std::size_t i = 0; i < reached.size(); ++i)
+          dirs.push_back(field.direction[reached[i]]), w.mutable_at(i) = field.weight[reached[i]];
+        return py::make_tuple(vector_array(reached), points_array(dirs), w);
+      }, py::arg("points"), py::arg("stroke_directions"),
+         "Adds samples: (faces they reached, sorted; the directions (k, 3) and weights (k,) there after the stroke so far)")
+      .def_property_readonly("changed", [](const CombStrokeInProgress& s) { return vector_array(s.state.changed()); },
+                             "every face the stroke changed so far, sorted");
+
   py::class_<FeatureSet, std::shared_ptr<FeatureSet>>(m, "FeatureSet", py::module_local(),
                                                       "Feature edges linked into chains (features.hpp)")
       .def_property_readonly("edge_ids", [](const FeatureSet& s) { return vector_array(s.edges); })
@@ -222,6 +249,26 @@ void bind_guides(py::module_& m) {
       }, py::arg("directions"), py::arg("weights"), py::arg("n"), py::arg("points"), py::arg("stroke_directions"),
          py::arg("radius"), py::arg("falloff") = "smooth", py::arg("strength") = 1.0,
          "One comb stroke: (new directions (F,3), new weights (F,), changed faces)")
+      .def("closest_faces", [](const GuideGeometry& g, const DoubleArray& points) {
+        const auto p = to_points(points, "points");
+        std::vector<int> faces(p.size());
+        {
+          py::gil_scoped_release release;
+          for (std::size_t i = 0; i < p.size(); ++i) faces[i] = g.tree().closest(p[i]).face;
+        }
+        return vector_array(faces);
+      }, py::arg("points"), "The face nearest to each point (closest point on the surface; -1 if none)")
+      .def("begin_comb_stroke", [](std::shared_ptr<GuideGeometry> g, const DoubleArray& directions,
+                                   const DoubleArray& weights, int n, double radius, const std::string& falloff,
+                                   double strength) {
+        check_n(n);
+        CombStroke settings{{}, {}, radius, parse_falloff(falloff), strength};
+        const TriangleMesh& mesh = g->mesh();
+        return std::make_shared<CombStrokeInProgress>(
+            CombStrokeInProgress{g, CombStrokeState(mesh, n, settings, to_comb(*g, directions, weights))});
+      }, py::arg("directions"), py::arg("weights"), py::arg("n"), py::arg("radius"), py::arg("falloff") = "smooth",
+         py::arg("strength") = 1.0,
+         "A stroke on the comb field (directions (F,3), weights (F,)) that takes its samples in batches")
       .def("comb_guide", [](const GuideGeometry& g, const DoubleArray& directions, const DoubleArray& weights, int n) {
         check_n(n);
         return layer_tuple(comb_guide(g.mesh(), g.frames(), n, to_comb(g, directions, weights)));

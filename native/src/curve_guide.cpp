@@ -1,6 +1,7 @@
 #include "nfield/curve_guide.hpp"
 
 #include <cmath>
+#include <cstdint>
 
 #include "nfield/errors.hpp"
 #include "nfield/face_regions.hpp"
@@ -58,15 +59,23 @@ void add_curve_band(const TriangleMesh& mesh, const TangentFrames& frames, int n
   if (!(width >= 0) || !std::isfinite(width)) throw ParameterError("curve width must be a number >= 0");
   if (!(weight >= 0) || !std::isfinite(weight)) throw ParameterError("curve weight must be a number >= 0");
   FaceWalker walker(mesh);
+  // The samples of one polyline segment share its tangent, and neighbouring samples reach mostly the same
+  // faces: a face keeps the representation of the last tangent it was given (keyed by the first sample of
+  // that tangent's run) instead of computing it again for every sample.
+  std::vector<std::size_t> cached_run(width > 0 ? mesh.num_faces() : 0, SIZE_MAX);
+  std::vector<Complex> cached_rep(cached_run.size());
+  std::size_t run = 0;
   for (std::size_t i = 0; i < curve.faces.size(); ++i) {
     const Eigen::Vector3d& t = curve.tangents[i];
     if (width == 0) {
       into.add(curve.faces[i], unit_representation(frames, curve.faces[i], t, n), weight);
       continue;
     }
+    if (i > 0 && t != curve.tangents[i - 1]) run = i;
     walker.ball(curve.faces[i], curve.points[i], width, [&](int f, double d) {
+      if (cached_run[f] != run) cached_run[f] = run, cached_rep[f] = unit_representation(frames, f, t, n);
       const double s = d / width, w = weight * (1 - s * s) * (1 - s * s);
-      into.add(f, unit_representation(frames, f, t, n), w);
+      into.add(f, cached_rep[f], w);
     });
   }
 }

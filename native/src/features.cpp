@@ -3,7 +3,6 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 #include "nfield/errors.hpp"
 #include "nfield/face_regions.hpp"
@@ -55,13 +54,7 @@ FeatureSet detect_features(const TriangleMesh& mesh, const MeshEdges& edges, con
     }
     if (!is_feature[e]) is_feature[e] = 1, ++out.num_marked;
   }
-  if (!unknown.empty()) {
-    std::ostringstream msg;
-    msg << unknown.size() << " marked feature edge(s) are not edges of the mesh's usable faces, e.g.";
-    for (std::size_t i = 0; i < std::min<std::size_t>(unknown.size(), 5); ++i)
-      msg << " (" << unknown[i][0] << ", " << unknown[i][1] << ")";
-    throw InputError(msg.str());
-  }
+  refuse_unknown_edges(unknown, "marked feature");
   for (int e = 0; e < edges.num_edges(); ++e)
     if (is_feature[e]) out.edges.push_back(e);
 

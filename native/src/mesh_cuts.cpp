@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <map>
 #include <numeric>
-#include <sstream>
 
 #include "nfield/errors.hpp"
 
@@ -51,13 +50,7 @@ CutMesh cut_mesh(const TriangleMesh& mesh, const MeshEdges& edges, const std::ve
       is_cut[e] = 1;
     }
   }
-  if (!unknown.empty()) {
-    std::ostringstream msg;
-    msg << unknown.size() << " cut edge(s) are not edges of the mesh's usable faces, e.g.";
-    for (std::size_t i = 0; i < std::min<std::size_t>(unknown.size(), 5); ++i)
-      msg << " (" << unknown[i][0] << ", " << unknown[i][1] << ")";
-    throw InputError(msg.str());
-  }
+  refuse_unknown_edges(unknown, "cut");
 
   // Corners stay together across every edge that is not cut.
   Classes classes(3 * nf);

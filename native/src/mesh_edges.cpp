@@ -3,6 +3,9 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <sstream>
+
+#include "nfield/errors.hpp"
 
 namespace nfield {
 namespace {
@@ -62,6 +65,15 @@ double MeshEdges::dihedral_angle(const TriangleMesh& mesh, int e) const {
   const Eigen::Vector3d& n0 = mesh.face_normal(face(e, 0));
   const Eigen::Vector3d& n1 = mesh.face_normal(face(e, 1));
   return std::atan2(n0.cross(n1).norm(), n0.dot(n1));
+}
+
+void refuse_unknown_edges(const std::vector<std::array<int, 2>>& unknown, const std::string& what) {
+  if (unknown.empty()) return;
+  std::ostringstream msg;
+  msg << unknown.size() << " " << what << " edge(s) are not edges of the mesh's usable faces, e.g.";
+  for (std::size_t i = 0; i < std::min<std::size_t>(unknown.size(), 5); ++i)
+    msg << " (" << unknown[i][0] << ", " << unknown[i][1] << ")";
+  throw InputError(msg.str());
 }
 
 }  // namespace nfield

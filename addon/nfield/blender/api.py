@@ -614,21 +614,24 @@ def guide_report(obj) -> dict | None:
     return None if report is None else report.to_dict()
 
 
-def comb(obj, points, directions, *, radius: float = 0.03, falloff: str = "smooth", strength: float = 1.0) -> int:
+def comb(obj, points, directions, *, radius: float = 0.03, falloff: str = "smooth", strength: float = 1.0,
+         mirror: bool = False) -> int:
     """One comb stroke: samples (points on the surface and drag directions, object space) paint guide
     directions within `radius` (fraction of the bounding-box diagonal) with a falloff ("smooth", "linear",
     "constant") and a strength in (0, 1]. Strokes accumulate into the comb field, stored in the face attributes
-    guides.COMB_DIRECTION / COMB_WEIGHT (saved, undoable); the comb field guides the next solve. Returns the
-    number of faces the stroke changed."""
+    guides.COMB_DIRECTION / COMB_WEIGHT (saved, undoable); the comb field guides the next solve. With `mirror`
+    and mirror symmetry on, the stroke also paints the mirror images of its samples (what the comb tool does).
+    Returns the number of faces the stroke changed."""
     if jobs.busy(obj):
         raise NFieldError(f"'{obj.name}' is being solved in the background: wait for it to finish or press Esc")
     _arrays, _entry, session = open_session(obj)
     try:
+        if mirror:
+            points, directions, _note = comb_samples(session, points, directions)
         changed = session.comb(points, directions, radius, falloff, strength)
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
-    guides.write_comb_field(obj, *session.comb_field)
-    session.set_comb(*guides.comb_field(obj))  # the session holds what the file holds (float32 attributes)
+    store_comb(obj, session)
     return int(len(changed))
 
 
@@ -645,6 +648,41 @@ def guide_summary(obj) -> list[str]:
     entry = session_cache.get_entry_cached(obj)
     report = None if entry is None or entry.session is None else entry.session.guide_report
     return [] if report is None else report.summary()
+
+
+def mirror_placements(session, item) -> tuple[list, str]:
+    """[item] and, with mirror symmetry on, its mirror image (an nfield.core DirectionConstraint,
+    VectorConstraint or SingularityConstraint at the partner face / vertex): what the design tools place in
+    one step. The note says when the item has no mirror partner (partial symmetry; empty otherwise). An item
+    on the mirror plane is its own image."""
+    if session.symmetry is None:
+        return [item], ""
+    image = session.mirrored(item)
+    where = f"vertex {item.vertex}" if isinstance(item, SingularityConstraint) else f"face {item.face}"
+    if image is None:
+        return [item], f"{where} has no mirror partner: placed on this side only"
+    same = image.vertex == item.vertex if isinstance(item, SingularityConstraint) else image.face == item.face
+    return ([item] if same else [item, image]), ""
+
+
+def comb_samples(session, points, directions) -> tuple[np.ndarray, np.ndarray, str]:
+    """The samples of a comb stroke (object space) and, with mirror symmetry on, their mirror images (one
+    stroke paints both sides), with a note on samples whose face has no mirror partner (empty otherwise)."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    if session.symmetry is None or not len(p):
+        return p, d, ""
+    mp, md, unmatched = session.mirrored_samples(p, d)
+    note = (f"{len(unmatched)} of {len(p)} comb samples lie on faces without a mirror partner: not mirrored"
+            if unmatched else "")
+    return np.concatenate([p, mp]), np.concatenate([d, md]), note
+
+
+def store_comb(obj, session) -> None:
+    """Write the session's comb field into the comb face attributes (saved, undoable) and make the session
+    hold exactly what the file holds (float32 attributes)."""
+    guides.write_comb_field(obj, *session.comb_field)
+    session.set_comb(*guides.comb_field(obj))
 
 
 def mirror_design(obj) -> int:

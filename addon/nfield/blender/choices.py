@@ -45,3 +45,9 @@ CONSTRAINT_KIND_ITEMS = [
     ("DIRECTION", "Direction", "Hard direction constraint: one of the n directions points along it"),
     ("VECTOR", "Vector", "Hard n-vector constraint: direction and magnitude"),
 ]
+#: how a comb brush's influence falls off from its centre to its rim (nfield.core's falloff names)
+COMB_FALLOFF_ITEMS = [
+    ("smooth", "Smooth", "Smooth falloff to the brush rim"),
+    ("linear", "Linear", "Linear falloff"),
+    ("constant", "Constant", "Full strength up to the rim"),
+]

@@ -6,6 +6,7 @@ import bpy
 
 from . import api
 from .guides import COMB_WEIGHT
+from .panels import NFieldMeshSubpanel
 
 
 class NFIELD_UL_guide_curves(bpy.types.UIList):
@@ -17,19 +18,9 @@ class NFIELD_UL_guide_curves(bpy.types.UIList):
         row.prop(item, "mode", text="")
 
 
-class NFIELD_PT_guides(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "nfield"
+class NFIELD_PT_guides(NFieldMeshSubpanel, bpy.types.Panel):
     bl_idname = "NFIELD_PT_guides"
     bl_label = "Guides"
-    bl_parent_id = "NFIELD_PT_main"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "MESH" and hasattr(obj, "nfield_guides")
 
     def draw(self, context):
         obj = context.active_object

@@ -31,6 +31,7 @@ from bpy.types import PropertyGroup
 
 from . import handlers
 from .guides import CURVE_TYPES
+from .properties import object_settings_registration
 
 _update = handlers.on_setting_changed
 
@@ -137,15 +138,4 @@ class NFieldGuides(PropertyGroup):
 
 
 classes = (NFieldGuideCurve, NFieldCombSample, NFieldGuides)
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
-
-
-def register():
-    _register_classes()
-    bpy.types.Object.nfield_guides = PointerProperty(type=NFieldGuides)
-
-
-def unregister():
-    if hasattr(bpy.types.Object, "nfield_guides"):
-        del bpy.types.Object.nfield_guides
-    _unregister_classes()
+register, unregister = object_settings_registration("nfield_guides", NFieldGuides, classes)

@@ -137,7 +137,9 @@ def apply_guides(session, wanted: dict | None) -> bool:
             changed = True
         comb = wanted.get("comb")
         have_dirs, have_weights = session.comb_field
-        if comb is None:
+        if session.comb_stroke_active:
+            pass  # a brush stroke in progress owns the comb field; the tool stores it at release
+        elif comb is None:
             if have_weights.any():
                 session.clear_comb()
                 changed = True

@@ -9,8 +9,9 @@ like ``mesh_read``. Vertex pairs are mesh vertex indices; per-face arrays have o
 * :func:`edge_attribute_edges`: the edges where an edge-domain BOOLEAN (or FLOAT > 0.5, INT != 0) attribute
   is set (cuts from a named attribute);
 * :func:`face_values`: a face-domain FLOAT attribute (guide weight, guide rotation in radians);
-* :func:`curve_polylines`: a curve object (Bezier / NURBS / poly curve, or a Curves object) as polylines in
-  the mesh object's space, one per spline;
+* :func:`curve_polylines`: a curve object (Bezier / NURBS / poly curve, a Curves object, or a Grease Pencil
+  object: legacy ``GPENCIL`` up to Blender 4.2, ``GREASEPENCIL`` from 4.3) as polylines in the mesh object's
+  space, one per spline / stroke;
 * :func:`comb_field` / :func:`write_comb_field`: the comb field stored as two face attributes
   (``COMB_DIRECTION`` FLOAT_VECTOR, ``COMB_WEIGHT`` FLOAT in [0, 1]); the mesh data is undoable and saved,
   so the comb strokes are too.
@@ -20,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import NFieldError
+from .mesh_read import named_attribute
 
 __all__ = ["MARKED_SOURCES", "marked_edges", "edge_attribute_edges", "face_values", "curve_polylines",
            "CURVE_TYPES", "COMB_DIRECTION", "COMB_WEIGHT", "comb_field", "write_comb_field", "remove_comb_field"]
@@ -30,8 +32,8 @@ COMB_WEIGHT = "nfield_comb_weight"
 
 #: what a feature / cut can be read from, in the order the panel shows them
 MARKED_SOURCES = ("SHARP", "SEAM", "FACE_SETS", "MATERIALS")
-#: object types a curve guide can reference
-CURVE_TYPES = ("CURVE", "CURVES")
+#: object types a curve guide can reference (Grease Pencil: "GPENCIL" in Blender 3.4 to 4.2, "GREASEPENCIL" from 4.3)
+CURVE_TYPES = ("CURVE", "CURVES", "GPENCIL", "GREASEPENCIL")
 _FACE_SET_ATTRIBUTE = ".sculpt_face_set"
 
 
@@ -113,14 +115,8 @@ def edge_attribute_edges(obj, name: str) -> np.ndarray:
     """(k, 2) vertex pairs of the edges where the edge-domain attribute `name` is set (BOOLEAN true, FLOAT
     > 0.5 or INT != 0). NFieldError naming the problem if there is no such edge attribute."""
     me = obj.data
-    if not name:
-        raise NFieldError("cuts come from an edge attribute but no attribute name is set")
-    attr = me.attributes.get(name)
-    if attr is None:
-        raise NFieldError(f"cut attribute '{name}' does not exist on mesh '{me.name}'")
-    if attr.domain != "EDGE" or attr.data_type not in ("BOOLEAN", "FLOAT", "INT"):
-        raise NFieldError(f"cut attribute '{name}' must be an EDGE-domain BOOLEAN, FLOAT or INT attribute "
-                          f"(it is {attr.domain} {attr.data_type})")
+    attr = named_attribute(obj, name, "cut attribute", "EDGE", ("BOOLEAN", "FLOAT", "INT"),
+                           unset="cuts come from an edge attribute but no attribute name is set")
     n = len(me.edges)
     if attr.data_type == "BOOLEAN":
         flags = np.zeros(n, dtype=bool)
@@ -140,12 +136,7 @@ def face_values(obj, name: str, what: str) -> np.ndarray:
     """The face-domain FLOAT attribute `name` as (polygons,) float64. `what` names its role in messages
     ("guide weight", "guide rotation"). NFieldError if it is missing, of another domain or type, or not finite."""
     me = obj.data
-    attr = me.attributes.get(name)
-    if attr is None:
-        raise NFieldError(f"{what} attribute '{name}' does not exist on mesh '{me.name}'")
-    if attr.domain != "FACE" or attr.data_type != "FLOAT":
-        raise NFieldError(f"{what} attribute '{name}' must be a FACE-domain FLOAT attribute "
-                          f"(it is {attr.domain} {attr.data_type})")
+    attr = named_attribute(obj, name, f"{what} attribute", "FACE", ("FLOAT",))
     vals = np.empty(len(me.polygons), dtype=np.float32)
     attr.data.foreach_get("value", vals)
     out = vals.astype(np.float64)
@@ -184,29 +175,87 @@ def _chains(num_points: int, edges: np.ndarray) -> list[list[int]]:
     return chains
 
 
+def _point_lines(positions: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
+    """The runs positions[offsets[i]:offsets[i + 1]] with two points or more."""
+    return [positions[a:b] for a, b in zip(offsets[:-1], offsets[1:]) if b - a >= 2]
+
+
+def _curves_lines(cd) -> list[np.ndarray]:
+    """A Curves data block's curves (control points)."""
+    pos = np.empty(len(cd.points) * 3, dtype=np.float32)
+    cd.points.foreach_get("position", pos)
+    offsets = np.empty(len(cd.curves) + 1, dtype=np.int32)
+    cd.curve_offset_data.foreach_get("value", offsets)
+    return _point_lines(pos.reshape(-1, 3).astype(np.float64), offsets)
+
+
+def _frame_at(frames, current: int):
+    """The legacy Grease Pencil frame shown at scene frame `current`: the last keyframe at or before it."""
+    shown = [f for f in frames if f.frame_number <= current]
+    return max(shown, key=lambda f: f.frame_number) if shown else None
+
+
+def _grease_pencil_lines(gp_obj, scene) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(4x4 matrix from the layer's space to world space, points (k, 3)) of every stroke of the visible
+    layers at the scene's current frame (hidden layers are skipped)."""
+    out = []
+    current = scene.frame_current if scene is not None else 0
+    for layer in gp_obj.data.layers:
+        if layer.hide:
+            continue
+        if gp_obj.type == "GREASEPENCIL":  # Blender 4.3+: layers -> frame -> drawing (a Curves geometry)
+            frame = layer.current_frame()
+            drawing = None if frame is None else frame.drawing
+            if drawing is None or not len(drawing.curve_offsets):
+                continue
+            pos = np.empty(len(drawing.attributes["position"].data) * 3, dtype=np.float32)
+            drawing.attributes["position"].data.foreach_get("vector", pos)
+            offsets = np.empty(len(drawing.curve_offsets), dtype=np.int32)
+            drawing.curve_offsets.foreach_get("value", offsets)
+            lines = _point_lines(pos.reshape(-1, 3).astype(np.float64), offsets)
+            local = np.array(layer.matrix_local, dtype=np.float64)
+            parent_inverse = np.array(layer.matrix_parent_inverse, dtype=np.float64)
+        else:  # the legacy object (Blender 3.4 to 4.2): layers -> frames -> strokes -> points
+            frame = layer.active_frame or _frame_at(layer.frames, current)
+            if frame is None:
+                continue
+            lines = []
+            for stroke in frame.strokes:
+                pos = np.empty(len(stroke.points) * 3, dtype=np.float32)
+                stroke.points.foreach_get("co", pos)
+                if len(stroke.points) >= 2:
+                    lines.append(pos.reshape(-1, 3).astype(np.float64))
+            local = np.array(layer.matrix_layer, dtype=np.float64)
+            parent_inverse = np.array(layer.matrix_inverse, dtype=np.float64)
+        if layer.parent is not None:  # a parented layer follows its parent object instead of the GP object
+            to_world = np.array(layer.parent.matrix_world, dtype=np.float64) @ parent_inverse @ local
+        else:
+            to_world = np.array(gp_obj.matrix_world, dtype=np.float64) @ local
+        out += [(to_world, p) for p in lines]
+    return out
+
+
 def curve_polylines(curve_obj, mesh_obj, depsgraph=None) -> list[np.ndarray]:
     """The splines of `curve_obj` as polylines ((k, 3) float64, k >= 2) in `mesh_obj`'s object space.
 
     Curve objects (Bezier, NURBS, poly) are evaluated as Blender draws them (their resolution, modifiers and
-    all, when a depsgraph is given); Curves objects use their control points. NFieldError for other types
-    or a curve without a spline of two points."""
+    all, when a depsgraph is given); Curves objects use their control points; Grease Pencil objects the
+    points of every stroke of their visible layers at the current frame (the layer's own transform and
+    parent applied). NFieldError for other types or a curve without a spline of two points."""
     if curve_obj is None:
         raise NFieldError("the curve guide has no curve object (it was deleted?)")
     if curve_obj.type not in CURVE_TYPES:
-        raise NFieldError(f"object '{curve_obj.name}' is a {curve_obj.type.lower()}: a curve guide needs a curve "
-                          f"or curves object (grease pencil strokes: convert them to a curve first)")
-    to_mesh_space = np.array(mesh_obj.matrix_world.inverted() @ curve_obj.matrix_world, dtype=np.float64)
-    lines: list[np.ndarray] = []
+        raise NFieldError(f"object '{curve_obj.name}' is a {curve_obj.type.lower()}: a curve guide needs a curve, "
+                          f"curves or grease pencil object")
+    world_to_mesh = np.array(mesh_obj.matrix_world.inverted(), dtype=np.float64)
+    to_world = np.array(curve_obj.matrix_world, dtype=np.float64)
+    placed: list[tuple[np.ndarray, np.ndarray]] = []  # (matrix to world space, points)
     if curve_obj.type == "CURVES":
-        cd = curve_obj.data
-        pos = np.empty(len(cd.points) * 3, dtype=np.float32)
-        cd.points.foreach_get("position", pos)
-        pos = pos.reshape(-1, 3).astype(np.float64)
-        offsets = np.empty(len(cd.curves) + 1, dtype=np.int32)
-        cd.curve_offset_data.foreach_get("value", offsets)
-        for a, b in zip(offsets[:-1], offsets[1:]):
-            if b - a >= 2:
-                lines.append(pos[a:b])
+        placed = [(to_world, p) for p in _curves_lines(curve_obj.data)]
+    elif curve_obj.type in ("GPENCIL", "GREASEPENCIL"):
+        scenes = curve_obj.users_scene
+        scene = depsgraph.scene if depsgraph is not None else (scenes[0] if scenes else None)
+        placed = _grease_pencil_lines(curve_obj, scene)
     else:
         src = curve_obj.evaluated_get(depsgraph) if depsgraph is not None else curve_obj
         me = src.to_mesh()
@@ -218,12 +267,12 @@ def curve_polylines(curve_obj, mesh_obj, depsgraph=None) -> list[np.ndarray]:
             ev = _edge_vertices(me)
         finally:
             src.to_mesh_clear()
-        lines = [pts[c] for c in _chains(nv, ev)]
-    if not lines:
+        placed = [(to_world, pts[c]) for c in _chains(nv, ev)]
+    if not placed:
         raise NFieldError(f"curve '{curve_obj.name}' has no spline with two points or more")
     out = []
-    for p in lines:
-        h = np.c_[p, np.ones(len(p))] @ to_mesh_space.T
+    for m, p in placed:
+        h = np.c_[p, np.ones(len(p))] @ (world_to_mesh @ m).T
         out.append(np.ascontiguousarray(h[:, :3]))
     return out
 

@@ -3,14 +3,22 @@
 While a worker solves an object's session, nothing else may touch that session: :func:`busy` says so, the
 api refuses to solve the object (NFieldError), and live updates are deferred (:func:`defer`) until the
 worker is done. :func:`start_later` launches the background solve operator from a timer, which is safe
-from property update callbacks and modal tools.
+from property update callbacks and modal tools; :func:`start_when_idle` does so once the viewport tools
+have paused on the object (the comb brush: strokes in quick succession are solved live, the global solve
+waits for the pause).
 """
 from __future__ import annotations
+
+import time
 
 import bpy
 
 #: object name -> the running background operator's shared state
 _running: dict[str, dict] = {}
+#: object name -> when a viewport tool last worked on it (time.monotonic(); 0.0 while a stroke is in progress)
+_interaction: dict[str, float] = {}
+#: objects with a start_when_idle timer waiting
+_scheduled: set[str] = set()
 
 
 def busy(obj) -> bool:
@@ -42,16 +50,39 @@ def interactive() -> bool:
 
 def start_later(obj_name: str) -> None:
     """Invoke the background solve (``nfield.solve_background``) for an object from a timer."""
+    bpy.app.timers.register(lambda: _launch(obj_name), first_interval=0.0)
+
+
+def interacting(obj_name: str, active: bool) -> None:
+    """A viewport tool starts (active) or ends a stroke on the object (see start_when_idle)."""
+    _interaction[obj_name] = 0.0 if active else time.monotonic()
+
+
+def start_when_idle(obj_name: str, idle_seconds: float) -> None:
+    """Invoke the background solve once no tool stroke has worked on the object for `idle_seconds`, so that
+    quick successive strokes (each solved live) are not held up by a global solve between them."""
+    if obj_name in _scheduled:
+        return
+    _scheduled.add(obj_name)
 
     def launch():
-        obj = bpy.data.objects.get(obj_name)
-        wm = bpy.context.window_manager
-        if obj is None or busy(obj) or not wm.windows:
-            return None
-        win = wm.windows[0]
-        area = next((a for a in win.screen.areas if a.type == "VIEW_3D"), win.screen.areas[0])
-        with bpy.context.temp_override(window=win, area=area, screen=win.screen, object=obj, active_object=obj):
-            bpy.ops.nfield.solve_background("INVOKE_DEFAULT", object_name=obj_name)
-        return None
+        last = _interaction.get(obj_name)
+        if bpy.data.objects.get(obj_name) is not None and last is not None and (
+                last == 0.0 or time.monotonic() - last < idle_seconds):
+            return 0.1  # still working: look again
+        _scheduled.discard(obj_name)
+        return _launch(obj_name)
 
-    bpy.app.timers.register(launch, first_interval=0.0)
+    bpy.app.timers.register(launch, first_interval=idle_seconds)
+
+
+def _launch(obj_name: str):
+    obj = bpy.data.objects.get(obj_name)
+    wm = bpy.context.window_manager
+    if obj is None or busy(obj) or not wm.windows:
+        return None
+    win = wm.windows[0]
+    area = next((a for a in win.screen.areas if a.type == "VIEW_3D"), win.screen.areas[0])
+    with bpy.context.temp_override(window=win, area=area, screen=win.screen, object=obj, active_object=obj):
+        bpy.ops.nfield.solve_background("INVOKE_DEFAULT", object_name=obj_name)
+    return None

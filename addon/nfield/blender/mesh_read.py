@@ -221,18 +221,28 @@ def attribute_values(obj, name: str, domain: str, data_type: str) -> np.ndarray 
     return np.array([d.value for d in attr.data], dtype=np.float64)
 
 
+def named_attribute(obj, name: str, what: str, domain: str, data_types: tuple[str, ...], unset: str = ""):
+    """The attribute `name` of obj's mesh, checked: NFieldError naming the problem if no name is given
+    (`unset`: the message), it does not exist, or it has another domain or data type. `what` names its role
+    ("alignment attribute", "cut attribute" ...)."""
+    me = obj.data
+    if not name:
+        raise NFieldError(unset or f"no {what} name is set")
+    attr = me.attributes.get(name)
+    if attr is None:
+        raise NFieldError(f"{what} '{name}' does not exist on mesh '{me.name}'")
+    if attr.domain != domain or attr.data_type not in data_types:
+        kinds = data_types[0] if len(data_types) == 1 else f"{', '.join(data_types[:-1])} or {data_types[-1]}"
+        raise NFieldError(f"{what} '{name}' must be a{'n' if domain[0] in 'AEIOU' else ''} {domain}-domain {kinds} "
+                          f"attribute (it is {attr.domain} {attr.data_type})")
+    return attr
+
+
 def read_face_vectors(obj, name: str, num_faces: int) -> np.ndarray:
     """A face-domain FLOAT_VECTOR attribute as (num_faces, 3) float64 (the alignment field). NFieldError
     naming the problem if it is missing or of another domain or type."""
-    me = obj.data
-    if not name:
-        raise NFieldError("alignment is 'Face Attribute' but no attribute name is set")
-    attr = me.attributes.get(name)
-    if attr is None:
-        raise NFieldError(f"alignment attribute '{name}' does not exist on mesh '{me.name}'")
-    if attr.domain != "FACE" or attr.data_type != "FLOAT_VECTOR":
-        raise NFieldError(f"alignment attribute '{name}' must be a FACE-domain FLOAT_VECTOR attribute "
-                          f"(it is {attr.domain} {attr.data_type})")
+    named_attribute(obj, name, "alignment attribute", "FACE", ("FLOAT_VECTOR",),
+                    unset="alignment is 'Face Attribute' but no attribute name is set")
     values = attribute_values(obj, name, "FACE", "FLOAT_VECTOR")
     if values.shape[0] != num_faces:
         raise NFieldError(f"alignment attribute '{name}' has {values.shape[0]} values for {num_faces} faces")

@@ -44,25 +44,34 @@ class NFieldObjectOperator:
         Every failure of the core or the compiled solver becomes an ERROR report and {'CANCELLED'}:
         ValueError (bad input, constraints, parameters: the message as is), RuntimeError (numerical failure,
         or Cancelled), MemoryError (std::bad_alloc in the solver)."""
-        obj = context.active_object
         if self.report_native_error():
             return {"CANCELLED"}
-        saved = None
-        try:
-            if self.keeps_design_on_failure:
-                api.sync(obj)  # a mesh change remaps the design first: that remapping is kept
-                saved = api.snapshot(obj)
-            message = fn(obj)
-            if solve_after and obj.nfield.live_update:
-                api.solve(obj)
-        except (ValueError, RuntimeError, MemoryError) as exc:
-            if saved is not None:
-                api.restore(obj, saved)
-            self.report({"ERROR"}, failure_message(exc))
-            return {"CANCELLED"}
-        if message:
-            self.report({"INFO"}, message)
-        return {"FINISHED"}
+        return guarded_edit(self, context.active_object, fn, keep_design=self.keeps_design_on_failure,
+                            solve_after=solve_after)
+
+
+def guarded_edit(op, obj, fn, *, keep_design: bool, solve_after: bool, redraw: bool = False) -> set:
+    """Run the edit fn(obj) -> message or None for operator `op`, then a re-solve if `solve_after` and Live
+    Update is on (else, with `redraw`, an overlay refresh). A failure becomes an ERROR report and
+    {'CANCELLED'}; with `keep_design` the object's settings and design are put back as they were."""
+    saved = None
+    try:
+        if keep_design:
+            api.sync(obj)  # a mesh change remaps the design first: that remapping is kept
+            saved = api.snapshot(obj)
+        message = fn(obj)
+        if solve_after and obj.nfield.live_update:
+            api.solve(obj)
+        elif redraw:
+            api.notify_overlay(obj)
+    except (ValueError, RuntimeError, MemoryError) as exc:
+        if saved is not None:
+            api.restore(obj, saved)
+        op.report({"ERROR"}, failure_message(exc))
+        return {"CANCELLED"}
+    if message:
+        op.report({"INFO"}, message)
+    return {"FINISHED"}
 
 
 def failure_message(exc: BaseException) -> str:

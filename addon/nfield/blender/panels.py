@@ -14,7 +14,8 @@ from . import design, session_cache, state
 
 #: the viewport tools the main panel offers buttons for: (tool id, button text, icon)
 TOOL_BUTTONS = (("nfield.tool_constraint", "Constraint Tool", "EMPTY_SINGLE_ARROW"),
-                ("nfield.tool_singularity", "Singularity Tool", "DOT"))
+                ("nfield.tool_singularity", "Singularity Tool", "DOT"),
+                ("nfield.tool_comb", "Comb Tool", "BRUSH_DATA"))
 #: width of one character of the UI font, in pixels at UI scale 1 (wrapping estimate; the sidebar does not
 #: wrap labels itself). Blender's default UI font averages ~6.5 px per character at 11 pt; 7 errs on the
 #: side of shorter lines.
@@ -142,6 +143,17 @@ class NFieldSubpanel(_NFieldPanel):
     """Base of the subpanels of the nfield tab (list them in SUBPANELS)."""
 
     bl_parent_id = "NFIELD_PT_main"
+
+
+class NFieldMeshSubpanel(NFieldSubpanel):
+    """Base of the subpanels that register themselves (guides, quad remesh): closed at first, shown for any
+    active mesh object (they draw their own message when the compiled solver cannot be loaded)."""
+
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return _mesh_object(context) is not None
 
 
 def solver_state_text(obj) -> str:

@@ -209,15 +209,20 @@ classes = (
 )
 
 
-_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+def object_settings_registration(attribute: str, group, group_classes):
+    """(register, unregister) of property classes whose `group` becomes ``bpy.types.Object.<attribute>``."""
+    register_classes, unregister_classes = bpy.utils.register_classes_factory(group_classes)
+
+    def register_settings():
+        register_classes()
+        setattr(bpy.types.Object, attribute, PointerProperty(type=group))
+
+    def unregister_settings():
+        if hasattr(bpy.types.Object, attribute):
+            delattr(bpy.types.Object, attribute)
+        unregister_classes()
+
+    return register_settings, unregister_settings
 
 
-def register():
-    _register_classes()
-    bpy.types.Object.nfield = PointerProperty(type=NFieldSettings)
-
-
-def unregister():
-    if hasattr(bpy.types.Object, "nfield"):
-        del bpy.types.Object.nfield
-    _unregister_classes()
+register, unregister = object_settings_registration("nfield", NFieldSettings, classes)

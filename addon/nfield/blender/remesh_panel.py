@@ -5,26 +5,14 @@ from __future__ import annotations
 
 import bpy
 
+from .panels import NFieldMeshSubpanel
 from .remesh_object import INFO_PROPERTY
 from .remesh_properties import OPTION_NAMES
 
-#: the parent panel (panels.NFIELD_PT_main)
-PARENT_PANEL = "NFIELD_PT_main"
 
-
-class NFIELD_PT_remesh(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "nfield"
+class NFIELD_PT_remesh(NFieldMeshSubpanel, bpy.types.Panel):
     bl_idname = "NFIELD_PT_remesh"
     bl_label = "Quad Remesh"
-    bl_parent_id = PARENT_PANEL
-    bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == "MESH"
 
     def draw(self, context):
         obj = context.active_object

@@ -83,7 +83,9 @@ def store_result(obj, entry, result) -> None:
     st.last_energy = float(result.energy)
     stale = st.num_stale  # items whose face / vertex the mesh lost
     invalid = design.invalid_for_n(obj)
-    st.last_message = (f"Solved: {len(result.singularities)} singularities"
+    found = ("Solved live (the global solve follows)" if result.singularities is None  # solve(details=False)
+             else f"Solved: {len(result.singularities)} singularities")
+    st.last_message = (found
                        + (f"; {stale} stale item(s) ignored" if stale else "")
                        + ("".join(f"; {m}" for m in invalid)))
     st.last_solver_state = solver_state_text(entry, result)
@@ -94,6 +96,8 @@ def store_result(obj, entry, result) -> None:
 
 
 def _remember(obj, entry, result) -> None:
+    if entry.session is not None and entry.session.comb_stroke_active:
+        return  # a brush stroke in progress: the session holds a comb field the file does not have yet
     try:
         key = design_key(obj, entry)
     except Exception:  # noqa: BLE001

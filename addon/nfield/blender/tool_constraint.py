@@ -5,7 +5,9 @@
   Pressing on a constrained face, or within ``PICK_PIXELS`` of any point of a constraint arrow (shaft or
   head, as drawn), re-aims that constraint. A press off the mesh does nothing.
   A click without a drag pins the current field direction of the face. Release: one undo step.
-  Esc / right-click: restore the state before the drag.
+  Esc / right-click: restore the state before the drag. With mirror symmetry on, the constraint's mirror
+  image is placed on the partner face as well, in the same step (a face without a partner: the header says
+  so).
 * ``nfield.constraint_delete``: delete the constraint under the cursor (X / Delete in the tool).
 
 The dragged direction is (drag point - press point) in object space, projected onto the face's object-space
@@ -16,24 +18,20 @@ from __future__ import annotations
 
 import time
 
-import bpy
 import numpy as np
-from bpy.props import IntProperty
 from bpy.types import Operator
 from mathutils import Vector
 
+from ..core import DirectionConstraint, VectorConstraint
 from . import api, design, mesh_read
 from .operator_base import failure_message
 from .tool_common import (
-    DRAG_PIXELS,
     ModalViewportTool,
-    clear_status,
     constraint_under_cursor,
+    delete_operator,
     last_press,
-    poll_object,
     ray_cast,
     ray_plane,
-    remove_design_item,
     set_status,
 )
 
@@ -52,10 +50,9 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
 
     bl_idname = "nfield.constraint_tool"
     bl_label = "Aim Field Constraint"
+    tick_seconds = 1.0 / 60.0  # live solves: one per tick for the latest mouse position
 
-    def invoke(self, context, event):
-        obj = context.active_object
-        mouse = (event.mouse_region_x, event.mouse_region_y)
+    def begin(self, context, obj, mouse) -> bool:
         arrays = mesh_read.mesh_arrays(obj)
         hit = ray_cast(context, obj, mouse, arrays)
         face = constraint_under_cursor(context, obj, mouse, hit, arrays)
@@ -64,32 +61,29 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
         last_press.clear()
         last_press.update(tool="constraint", mouse=list(mouse), object=obj.name, face=face,
                           hit_face=None if hit is None else hit[2])
-        if face is None:
-            # off the mesh: nothing, and the press must not fall through to select / move while this tool
-            # is active (a cancelled keymap operator ends the event's handling)
-            return {"CANCELLED"}
-        if not self._open_session(obj):
-            return {"CANCELLED"}
-        self._obj_name = obj.name
+        if face is None or not self._open_session(obj):
+            return False  # off the mesh: nothing (a cancelled keymap operator ends the event's handling)
         self._face = face
         self._normal = Vector(tuple(arrays.polygon_normals[face]))
         self._anchor = Vector(tuple(arrays.polygon_centers[face])) if hit is None or hit[2] != face else hit[0].copy()
-        self._press = Vector(mouse)
-        self._dragged = False
-        item = design.constraint_item(obj, face)
-        self._before = None if item is None else (item.kind, tuple(item.direction))
-        self._accepted = self._before  # the last (kind, direction) the solver accepted in this drag
+        # the faces this drag sets: the pressed one and, with mirror symmetry, its partner
+        placed, self._note = api.mirror_placements(self._session, DirectionConstraint(face, (1.0, 0.0, 0.0)))
+        self._before = {c.face: self._stored(obj, c.face) for c in placed}
+        self._accepted = dict(self._before)  # the last (kind, direction) per face the solver accepted
         self._before_result = self._entry.result
         self._target = None
         self._solved_target = None
-        self._timer = context.window_manager.event_timer_add(1.0 / 60.0, window=context.window)
-        context.window_manager.modal_handler_add(self)
-        set_status(context, f"Aim constraint on face {face}: drag to aim, release to confirm, "
-                             f"Esc/RMB to cancel")
-        return {"RUNNING_MODAL"}
+        set_status(context, f"Aim constraint on face {face}: drag to aim, release to confirm, Esc/RMB to cancel"
+                            + (f" | {self._note}" if self._note else ""))
+        return True
+
+    @staticmethod
+    def _stored(obj, face):
+        item = design.constraint_item(obj, face)
+        return None if item is None else (item.kind, tuple(item.direction))
 
     # -- live aim
-    def _aim(self, context, obj, mouse):
+    def drag(self, context, obj, mouse):
         p = ray_plane(context, obj, mouse, self._anchor, self._normal)
         if p is None:
             return
@@ -99,65 +93,53 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
             return
         self._target = d.normalized()
 
-    def _apply(self, context, obj, direction, kind="DIRECTION"):
-        """Re-solve through the session's re-aim path with `direction`; store it in the design only if the
-        solve succeeds (otherwise the session goes back to the last accepted direction; returns False)."""
-        face = self._face
-        t0 = time.perf_counter()
-        try:
-            if kind == "VECTOR":
-                self._session.set_vector(face, tuple(direction))
-            else:
-                self._session.set_direction(face, tuple(direction))
-            result = self._session.solve()
-        except (ValueError, RuntimeError, MemoryError) as exc:
-            self._session_back_to(self._accepted)
-            self.report({"WARNING"}, failure_message(exc))
-            return False
-        design.set_constraint(obj, face, direction, kind, self._entry.arrays.polygon_centers[face])
-        self._accepted = (kind, tuple(direction))
-        self._store(obj, result)
-        ms = (time.perf_counter() - t0) * 1e3
-        d = tuple(round(x, 3) for x in direction)
-        set_status(context, f"Face {face}: direction {d} (object space), live solve {ms:.0f} ms | "
-                             f"release to confirm, Esc/RMB to cancel")
+    def tick(self, context, obj):
+        if self._target is not None and self._target != self._solved_target:
+            self._solved_target = self._target.copy()
+            self._apply(context, obj, self._target)
+
+    def release(self, context, obj):
+        if self._target is not None and self._target != self._solved_target:
+            self._apply(context, obj, self._target)
+        elif not self._dragged and self._before[self._face] is None:
+            d = _face_direction(self._entry, self._face)  # click: pin the current direction
+            if d is None or not self._apply(context, obj, d):
+                return False
+        elif self._target is None:
+            return False  # nothing changed: no undo step
+        self._write_attributes(obj)
         return True
 
-    def modal(self, context, event):
-        obj = bpy.data.objects.get(self._obj_name)
-        if obj is None:
-            return self._finish(context, cancelled=True)
-        if event.type == "MOUSEMOVE":
-            mouse = Vector((event.mouse_region_x, event.mouse_region_y))
-            if self._dragged or (mouse - self._press).length >= DRAG_PIXELS:
-                self._dragged = True
-                self._aim(context, obj, mouse)
-            return {"RUNNING_MODAL"}
-        if event.type == "TIMER":
-            # coalesced: one solve per timer tick for the latest mouse position
-            if self._target is not None and self._target != self._solved_target:
-                self._solved_target = self._target.copy()
-                self._apply(context, obj, self._target)
-            return {"RUNNING_MODAL"}
-        if event.type == "LEFTMOUSE" and event.value == "RELEASE":
-            if self._target is not None and self._target != self._solved_target:
-                self._apply(context, obj, self._target)
-            elif not self._dragged and self._before is None:
-                d = _face_direction(self._entry, self._face)  # click: pin the current direction
-                if d is None or not self._apply(context, obj, d):
-                    return self._finish(context, cancelled=True)
-            elif self._target is None:
-                return self._finish(context, cancelled=True)  # nothing changed: no undo step
-            self._write_attributes(obj)
-            return self._finish(context, cancelled=False)
-        if event.type in {"ESC", "RIGHTMOUSE"} and event.value == "PRESS":
-            self._restore(obj)
-            return self._finish(context, cancelled=True)
-        return {"RUNNING_MODAL"}
+    def _apply(self, context, obj, direction, kind="DIRECTION"):
+        """Re-solve through the session's re-aim path with `direction` (and its mirror image); store them in
+        the design only if the solve succeeds (otherwise the session goes back to the last accepted
+        directions; returns False)."""
+        t0 = time.perf_counter()
+        cls = VectorConstraint if kind == "VECTOR" else DirectionConstraint
+        placed, _ = api.mirror_placements(self._session, cls(self._face, tuple(direction)))
+        values = {c.face: c.vector if kind == "VECTOR" else c.direction for c in placed}
+        try:
+            for face, d in values.items():
+                (self._session.set_vector if kind == "VECTOR" else self._session.set_direction)(face, d)
+            result = self._session.solve()
+        except (ValueError, RuntimeError, MemoryError) as exc:
+            for face in values:
+                self._session_back_to(face, self._accepted.get(face))
+            self.report({"WARNING"}, failure_message(exc))
+            return False
+        for face, d in values.items():
+            design.set_constraint(obj, face, d, kind, self._entry.arrays.polygon_centers[face])
+            self._accepted[face] = (kind, tuple(d))
+        self._store(obj, result)
+        ms = (time.perf_counter() - t0) * 1e3
+        shown = tuple(round(x, 3) for x in direction)
+        mirrored = f" (and its mirror image on face {placed[1].face})" if len(placed) > 1 else ""
+        set_status(context, f"Face {self._face}: direction {shown} (object space){mirrored}, live solve {ms:.0f} ms"
+                            f" | release to confirm, Esc/RMB to cancel" + (f" | {self._note}" if self._note else ""))
+        return True
 
-    def _session_back_to(self, state):
-        """Put the session's constraint on this face back to `state` ((kind, direction) or None)."""
-        face = self._face
+    def _session_back_to(self, face, state):
+        """Put the session's constraint on `face` back to `state` ((kind, direction) or None)."""
         try:
             if state is None:
                 if any(getattr(c, "face", None) == face for c in self._session.constraints):
@@ -168,69 +150,25 @@ class NFIELD_OT_constraint_tool(ModalViewportTool, Operator):
         except ValueError:
             pass
 
-    def _restore(self, obj):
-        face = self._face
-        if self._before is None:
-            if design.constraint_item(obj, face) is not None:
-                design.remove_constraint(obj, face)
-            try:
-                if any(getattr(c, "face", None) == face for c in self._session.constraints):
-                    self._session.remove(face)
-            except ValueError:
-                pass
-        else:
-            kind, d = self._before
-            design.set_constraint(obj, face, d, kind, self._entry.arrays.polygon_centers[face])
-            try:
-                (self._session.set_vector if kind == "VECTOR" else self._session.set_direction)(face, d)
-            except ValueError:
-                pass
-        if self._solved_target is None:
-            return  # the field never changed
-        try:
-            result = self._session.solve()
-        except (ValueError, RuntimeError, MemoryError):
-            result = self._before_result
-        if result is not None:
-            self._store(obj, result)
-
-    def _finish(self, context, cancelled):
-        context.window_manager.event_timer_remove(self._timer)
-        clear_status(context)
-        obj = bpy.data.objects.get(self._obj_name)
-        if obj is not None:
-            api.notify_overlay(obj)
-        return {"CANCELLED"} if cancelled else {"FINISHED"}
+    def restore(self, context, obj):
+        for face, before in self._before.items():
+            if before is None:
+                if design.constraint_item(obj, face) is not None:
+                    design.remove_constraint(obj, face)
+            else:
+                kind, d = before
+                design.set_constraint(obj, face, d, kind, self._entry.arrays.polygon_centers[face])
+            self._session_back_to(face, before)
+        if self._solved_target is not None:  # the field changed
+            self._solve_or_put_back(obj)
 
 
-class NFIELD_OT_constraint_delete(Operator):
-    """Delete the direction constraint under the cursor"""
-
-    bl_idname = "nfield.constraint_delete"
-    bl_label = "Delete Field Constraint"
-    bl_options = {"REGISTER", "UNDO"}
-
-    face: IntProperty(name="Face", default=-1, min=-1,
-                      description="Polygon whose constraint to delete (-1: the one under the cursor)")
-
-    @classmethod
-    def poll(cls, context):
-        return poll_object(context) and len(context.active_object.nfield.constraints) > 0
-
-    def invoke(self, context, event):
-        obj = context.active_object
-        mouse = (event.mouse_region_x, event.mouse_region_y)
-        arrays = mesh_read.mesh_arrays(obj)
-        face = constraint_under_cursor(context, obj, mouse, ray_cast(context, obj, mouse, arrays), arrays)
-        if face is None:
-            self.report({"INFO"}, "No constraint under the cursor")
-            return {"CANCELLED"}
-        self.face = face
-        return self.execute(context)
-
-    def execute(self, context):
-        return remove_design_item(self, context, api.remove_constraint, self.face,
-                                   f"Removed the constraint on face {self.face}")
+NFIELD_OT_constraint_delete = delete_operator(
+    "NFIELD_OT_constraint_delete", "Delete the direction constraint under the cursor", "nfield.constraint_delete",
+    "Delete Field Constraint", "constraints", "face", "Polygon whose constraint to delete (-1: the one under the "
+    "cursor)", api.remove_constraint, ("No constraint under the cursor", "Removed the constraint on face {}"),
+    lambda context, obj, mouse, arrays: constraint_under_cursor(context, obj, mouse,
+                                                                ray_cast(context, obj, mouse, arrays), arrays))
 
 
 classes = (NFIELD_OT_constraint_tool, NFIELD_OT_constraint_delete)

@@ -3,9 +3,12 @@
 * *Field Constraint*: ``nfield.constraint_tool`` (LMB drag), ``nfield.constraint_delete`` (X, Del); module
   ``tool_constraint``;
 * *Field Singularity*: ``nfield.singularity_tool`` (LMB), ``nfield.singularity_delete`` (X, Del); module
-  ``tool_singularity``.
+  ``tool_singularity``;
+* *Comb*: ``nfield.comb_tool`` (LMB drag), its brush settings in the tool header, the brush circle as its
+  cursor; module ``tool_comb``.
 
-What the two tools share (picking on the mesh, the header text, the live session) is in ``tool_common``.
+What the tools share (picking on the mesh, the header text, the live session, the press / drag / release
+handling) is in ``tool_common``.
 In background Blender (no window) only the operators are registered: there is no toolbar.
 """
 from __future__ import annotations
@@ -13,10 +16,12 @@ from __future__ import annotations
 import bpy
 from bpy.types import WorkSpaceTool
 
-from . import tool_constraint, tool_singularity
+from . import tool_comb, tool_constraint, tool_singularity
 
 CONSTRAINT_HINT = ("Field Constraint: drag on a face to aim | drag from an arrow to re-aim | "
                    "X/Del: delete constraint under cursor | Esc/RMB during drag: cancel")
+COMB_HINT = ("Comb: drag over the surface to paint guide directions (radius, strength and falloff in the tool "
+             "header) | Esc/RMB during a stroke: cancel it")
 SINGULARITY_HINT = ("Field Singularity: click near a vertex, then Wheel / +- / 1-9 to pick the index, "
                     "Minus flips sign, LMB/Enter to confirm, Esc/RMB to cancel | X/Del: remove pinned singularity")
 
@@ -51,8 +56,28 @@ class NFIELD_TL_singularity(WorkSpaceTool):
     )
 
 
-classes = tool_constraint.classes + tool_singularity.classes
-_tools = (NFIELD_TL_constraint, NFIELD_TL_singularity)
+class NFIELD_TL_comb(WorkSpaceTool):
+    bl_space_type = "VIEW_3D"
+    bl_context_mode = "OBJECT"
+    bl_idname = "nfield.tool_comb"
+    bl_label = "Comb"
+    bl_description = COMB_HINT
+    bl_icon = "brush.particle.comb"
+    bl_widget = None
+    bl_keymap = (("nfield.comb_tool", {"type": "LEFTMOUSE", "value": "PRESS"}, None),)
+
+    @staticmethod
+    def draw_settings(context, layout, tool):
+        props = tool.operator_properties(tool_comb.NFIELD_OT_comb_tool.bl_idname)
+        layout.prop(props, "radius")
+        layout.prop(props, "strength")
+        layout.prop(props, "falloff", text="")
+
+    draw_cursor = staticmethod(tool_comb.draw_cursor)
+
+
+classes = tool_constraint.classes + tool_singularity.classes + tool_comb.classes
+_tools = (NFIELD_TL_constraint, NFIELD_TL_singularity, NFIELD_TL_comb)
 _registered_tools: list = []
 
 

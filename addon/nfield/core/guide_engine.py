@@ -115,23 +115,19 @@ class GuideEngine:
             projected, [c.width * self.diagonal for _, c in soft], [c.weight for _, c in soft], n))
 
     # ------------------------------------------------------------------ comb
+    def begin_comb_stroke(self, directions: np.ndarray, weights: np.ndarray, n: int, radius: float, falloff: str,
+                          strength: float) -> "CombStroke":
+        """A stroke on the comb field given per input face (`radius`: fraction of the diagonal) that takes its
+        samples in batches (CombStroke.add)."""
+        return CombStroke(self, directions, weights, n, radius * self.diagonal, falloff, strength)
+
     def comb_stroke(self, directions: np.ndarray, weights: np.ndarray, n: int, points, stroke_directions,
                     radius: float, falloff: str, strength: float):
         """One stroke on the comb field given per input face; returns (directions, weights, changed input
-        faces). The native stroke works per triangle; a polygon takes the value of its most strongly combed
-        changed triangle."""
-        tf = self.mesh.triangle_face
-        d_tri = np.ascontiguousarray(directions[tf])
-        w_tri = np.ascontiguousarray(weights[tf])
-        new_d, new_w, changed = self.geometry.comb_stroke(
-            d_tri, w_tri, n, np.asarray(points, dtype=np.float64).reshape(-1, 3),
-            np.asarray(stroke_directions, dtype=np.float64).reshape(-1, 3), radius * self.diagonal, falloff, strength)
-        changed = np.asarray(changed, dtype=np.int64)
-        out_d, out_w = directions.copy(), weights.copy()
-        order = changed[np.argsort(np.asarray(new_w)[changed], kind="stable")]
-        out_d[tf[order]] = np.asarray(new_d)[order]
-        out_w[tf[order]] = np.asarray(new_w)[order]
-        return out_d, out_w, np.unique(tf[changed])
+        faces)."""
+        stroke = self.begin_comb_stroke(directions, weights, n, radius, falloff, strength)
+        stroke.add(points, stroke_directions)
+        return stroke.directions, stroke.weights, stroke.changed_faces
 
     def comb_layer(self, directions: np.ndarray, weights: np.ndarray, token, n: int):
         tf = self.mesh.triangle_face
@@ -223,3 +219,51 @@ class GuideEngine:
                                    "reason": f"{names[a]} and {names[b]} ask for directions {degrees:.3g} degrees "
                                              f"apart (the {n}-symmetry cannot hold both)"})
         return {int(t): complex(z) for t, z in zip(np.asarray(f).tolist(), np.asarray(d))}
+
+
+class CombStroke:
+    """A comb stroke in progress on the comb field of one mesh (per input face, i.e. per polygon).
+
+    The native stroke works per triangle (comb.hpp: after each batch of samples its field equals that of one
+    stroke of all the samples so far); a polygon takes the value of its most strongly combed changed triangle.
+    ``directions`` / ``weights`` are the field after the samples so far, ``changed_faces`` the input faces
+    the stroke changed."""
+
+    def __init__(self, engine: GuideEngine, directions: np.ndarray, weights: np.ndarray, n: int, radius: float,
+                 falloff: str, strength: float):
+        tf = engine.mesh.triangle_face
+        self._tf = tf
+        self._native = engine.geometry.begin_comb_stroke(np.ascontiguousarray(directions[tf]),
+                                                         np.ascontiguousarray(weights[tf]), n, radius, falloff,
+                                                         strength)
+        self._tri_d = np.array(directions[tf], dtype=np.float64)
+        self._tri_w = np.array(weights[tf], dtype=np.float64)
+        self._before = (np.array(directions, dtype=np.float64), np.array(weights, dtype=np.float64))
+        self.directions, self.weights = self._before[0].copy(), self._before[1].copy()
+        self._num_polygons = len(weights)
+
+    def add(self, points, stroke_directions) -> np.ndarray:
+        """Adds samples (points on the surface, drag directions; (k, 3) each). Returns the input faces whose
+        value this batch may have changed."""
+        reached, d, w = self._native.add(np.asarray(points, dtype=np.float64).reshape(-1, 3),
+                                         np.asarray(stroke_directions, dtype=np.float64).reshape(-1, 3))
+        reached = np.asarray(reached, dtype=np.int64)
+        if not len(reached):
+            return reached
+        self._tri_d[reached] = np.asarray(d)
+        self._tri_w[reached] = np.asarray(w)
+        polygons = np.unique(self._tf[reached])
+        touched = np.zeros(self._num_polygons, dtype=bool)
+        touched[polygons] = True
+        changed = np.zeros(len(self._tf), dtype=bool)
+        changed[np.asarray(self._native.changed, dtype=np.int64)] = True
+        candidates = np.flatnonzero(changed & touched[self._tf])
+        self.directions[polygons], self.weights[polygons] = self._before[0][polygons], self._before[1][polygons]
+        order = candidates[np.argsort(self._tri_w[candidates], kind="stable")]  # the strongest is written last
+        self.directions[self._tf[order]] = self._tri_d[order]
+        self.weights[self._tf[order]] = self._tri_w[order]
+        return polygons
+
+    @property
+    def changed_faces(self) -> np.ndarray:
+        return np.unique(self._tf[np.asarray(self._native.changed, dtype=np.int64)])

@@ -96,6 +96,14 @@ def _edge_pairs(edges: Any, what: str) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=np.int64)
 
 
+def _check_guide_options(guide, what: str, width, every_means: str) -> None:
+    """Check and store the options feature and curve guides share: mode, weight, the (checked) width, every."""
+    _mode(guide.mode, what)
+    object.__setattr__(guide, "weight", _finite(guide.weight, f"{what} weight", 0.0))
+    object.__setattr__(guide, "width", width)
+    object.__setattr__(guide, "every", _count(guide.every, f"{what} 'every' ({every_means})"))
+
+
 @dataclass(frozen=True)
 class FeatureGuide:
     """Align the field with feature edges.
@@ -125,10 +133,7 @@ class FeatureGuide:
         if self.sharp_angle is not None:
             object.__setattr__(self, "sharp_angle", _finite(self.sharp_angle, "sharp angle (degrees)", 0.0, 179.0))
         object.__setattr__(self, "edges", _edge_pairs(self.edges, "feature edges"))
-        _mode(self.mode, "feature")
-        object.__setattr__(self, "weight", _finite(self.weight, "feature weight", 0.0))
-        object.__setattr__(self, "width", _count(self.width, "feature width (edge rings)"))
-        object.__setattr__(self, "every", _count(self.every, "feature 'every' (every k-th edge)"))
+        _check_guide_options(self, "feature", _count(self.width, "feature width (edge rings)"), "every k-th edge")
         object.__setattr__(self, "corner_angle", _finite(self.corner_angle, "corner angle (degrees)", 0.0, 180.0))
         if not self.boundary and self.sharp_angle is None and len(self.edges) == 0:
             raise ValueError("a feature guide needs boundary=True, a sharp angle or marked edges")
@@ -186,11 +191,8 @@ class CurveGuide:
         if not np.isfinite(p).all():
             raise ValueError(f"curve point {int(np.flatnonzero(~np.isfinite(p).all(axis=1))[0])} is not finite")
         object.__setattr__(self, "points", np.ascontiguousarray(p))
-        _mode(self.mode, "curve")
-        object.__setattr__(self, "weight", _finite(self.weight, "curve weight", 0.0))
-        object.__setattr__(self, "width", _finite(self.width, "curve width", 0.0, 1.0))
+        _check_guide_options(self, "curve", _finite(self.width, "curve width", 0.0, 1.0), "every k-th crossed face")
         object.__setattr__(self, "tolerance", _finite(self.tolerance, "curve tolerance", 0.0, 1.0))
-        object.__setattr__(self, "every", _count(self.every, "curve 'every' (every k-th crossed face)"))
 
     def key(self) -> tuple:
         return (self.points.tobytes(), self.tolerance)

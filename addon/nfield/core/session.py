@@ -431,9 +431,10 @@ class DesignSession(SessionGuides, SessionLive):
             region = self._live_region(inputs) if live else None
             if region is not None:
                 w, lam, sign_fixed = self._solve_local(ops, inputs, region)
+                self._remember_base(inputs, w, live=True)  # the next live edit starts from this field
             else:
                 w, lam, sign_fixed = self._solve_exact(ops, inputs)
-                self._remember_global(inputs, w)
+                self._remember_base(inputs, w)
             mode, basis_size = "exact", None
         u = _normalize(w)
         self._dirty = False
@@ -455,14 +456,18 @@ class DesignSession(SessionGuides, SessionLive):
         """ExactSolver keywords for the guide weights: none when they are uniformly 1 (the plain system)."""
         return {} if inputs.weight_digest is None else {"alignment_weight": inputs.matrix_weight}
 
-    def pending_work(self) -> str | None:
+    def pending_work(self, live: bool = False) -> str | None:
         """What the next solve() must compute before it can solve: "basis" (spectral mode, the basis is
         neither in memory nor cached: minutes), "factorization" (exact mode with new settings, constraints
         kind or frozen faces: about a second per 100k faces), or None (a fast incremental solve). Lets a UI
-        move the long work to a worker thread."""
+        move the long work to a worker thread. live=True asks about solve(live=True): a guide edit solved in
+        a region needs no global factorization while the last solve (global or live) of the same operators
+        and settings is there to start from."""
         inputs = self._solve_inputs()
         if self._spectral_applies(inputs):
             return None if self.basis_available() else "basis"
+        if live and self._ops_key == self._ops_wanted() and self._live_base_ready(inputs):
+            return None
         if self._ops_key != self._ops_wanted() or self._solver is None or self._global_due:
             return "factorization"
         if self._exact_key(inputs) != self._solver_key:

@@ -16,6 +16,15 @@ from .guide_engine import GuideEngine, GuideInputs, local_stiffness
 from .guides import FALLOFFS, CurveGuide, FeatureGuide, GuideReport, Symmetry, _edge_pairs, _finite, parse_features
 
 
+def _stroke_samples(points: Any, directions: Any) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(points, dtype=np.float64)
+    d = np.asarray(directions, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or d.shape != p.shape or len(p) == 0:
+        raise ValueError(f"a comb stroke needs points and directions of the same shape (k, 3), k >= 1; got "
+                         f"{p.shape} and {d.shape}")
+    return p, d
+
+
 class SessionGuides:
     """Mixin of DesignSession: features, curves, comb, weights, rotations, cuts and mirror symmetry."""
 
@@ -23,6 +32,7 @@ class SessionGuides:
         self._guide = GuideInputs(curves={})
         self._guide_version = 0       # bumped by every guide edit
         self._comb_token = 0
+        self._stroke = None           # (CombStroke, comb directions and weights before it) while one is in progress
         self._engine = GuideEngine(self.mesh)
         self._cuts = np.zeros((0, 2), dtype=np.int64)
         self._cut = None              # (native cut mesh, info) or None
@@ -126,20 +136,60 @@ class SessionGuides:
         (fraction of the bounding-box diagonal) with a falloff ("smooth", "linear", "constant") and a
         strength in (0, 1]. Accumulates into the comb field (see comb_field) and returns the input faces it
         changed (what a Blender undo step stores)."""
-        p = np.asarray(points, dtype=np.float64)
-        d = np.asarray(directions, dtype=np.float64)
-        if p.ndim != 2 or p.shape[1] != 3 or d.shape != p.shape or len(p) == 0:
-            raise ValueError(f"a comb stroke needs points and directions of the same shape (k, 3), k >= 1; got "
-                             f"{p.shape} and {d.shape}")
+        p, d = _stroke_samples(points, directions)
+        self.begin_comb_stroke(radius, falloff, strength)
+        try:
+            self.extend_comb_stroke(p, d)
+        except ValueError:
+            self.cancel_comb_stroke()
+            raise
+        return self.end_comb_stroke()
+
+    def begin_comb_stroke(self, radius: float, falloff: str = "smooth", strength: float = 1.0) -> None:
+        """Start a brush stroke that takes its samples in batches (extend_comb_stroke, as the mouse moves):
+        after every batch the comb field is that of one stroke (comb) of all the samples so far, so a live
+        solve can follow the brush. end_comb_stroke finishes it, cancel_comb_stroke puts the comb field back."""
         radius = _finite(radius, "comb radius (fraction of the diagonal)", 0.0, 1.0, open_lo=True)
         strength = _finite(strength, "comb strength", 0.0, 1.0, open_lo=True)
         if falloff not in FALLOFFS:
             raise ValueError(f"unknown falloff {falloff!r} (expected one of {', '.join(FALLOFFS)})")
         dirs, weights = self.comb_field
-        dirs, weights, changed = self._engine.comb_stroke(dirs, weights, self._settings["n"], p, d, radius, falloff,
-                                                         strength)
-        self._set_comb_arrays(dirs, weights)
+        self._stroke = (self._engine.begin_comb_stroke(dirs, weights, self._settings["n"], radius, falloff, strength),
+                        self._guide.comb_directions, self._guide.comb_weights)
+
+    def extend_comb_stroke(self, points: Any, directions: Any) -> np.ndarray:
+        """Add samples to the stroke in progress; returns the input faces whose comb value they may change."""
+        if self._stroke is None:
+            raise ValueError("no comb stroke in progress (begin_comb_stroke first)")
+        p, d = _stroke_samples(points, directions)
+        stroke = self._stroke[0]
+        touched = stroke.add(p, d)
+        if len(touched):
+            self._set_comb_arrays(stroke.directions.copy(), stroke.weights.copy())
+        return touched
+
+    def end_comb_stroke(self) -> np.ndarray:
+        """Finish the stroke in progress; returns every input face it changed."""
+        if self._stroke is None:
+            raise ValueError("no comb stroke in progress")
+        changed = self._stroke[0].changed_faces
+        self._stroke = None
         return changed
+
+    def cancel_comb_stroke(self) -> None:
+        """Drop the stroke in progress: the comb field goes back to what it was before the stroke."""
+        if self._stroke is None:
+            return
+        _, dirs, weights = self._stroke
+        self._stroke = None
+        if dirs is None:
+            self.clear_comb()
+        else:
+            self._set_comb_arrays(dirs, weights)
+
+    @property
+    def comb_stroke_active(self) -> bool:
+        return self._stroke is not None
 
     def set_comb(self, directions: Any, weights: Any) -> None:
         """Restore a stored comb field: (F, 3) unit tangent directions and (F,) weights in [0, 1] per input face."""
@@ -149,9 +199,11 @@ class SessionGuides:
         w = self._per_face_array(weights, "comb weight", 0.0)
         if w is not None and (w > 1).any():
             raise ValueError(f"comb weight at face {int(np.flatnonzero(w > 1)[0])} is above 1 (weights lie in [0, 1])")
+        self._stroke = None
         self._set_comb_arrays(d.copy(), w)
 
     def clear_comb(self) -> None:
+        self._stroke = None
         self._guide.comb_directions = self._guide.comb_weights = None
         self._comb_token += 1
         self._guide_changed()
@@ -256,6 +308,22 @@ class SessionGuides:
         vec[axis] = -vec[axis]
         cls = DirectionConstraint if isinstance(constraint, DirectionConstraint) else VectorConstraint
         return cls(face, tuple(vec.tolist()))
+
+    def mirrored_samples(self, points: Any, directions: Any) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """The mirror images of comb samples: (points, directions, unmatched). Points and directions are
+        reflected about the mirror plane; a sample whose face (the face nearest to it) has no mirror partner
+        has no image (partial symmetry): its index is listed in `unmatched`."""
+        if self._mirror is None:
+            raise ValueError("mirror symmetry is off: call set_symmetry first")
+        p, d = _stroke_samples(points, directions)
+        axis = "xyz".index(self._symmetry.axis)
+        faces = np.asarray(self._engine.geometry.closest_faces(p), dtype=np.int64)
+        partner = np.asarray(self._mirror.partner)
+        ok = (faces >= 0) & (partner[np.maximum(faces, 0)] >= 0)
+        p, d = p[ok].copy(), d[ok].copy()
+        p[:, axis] = 2.0 * self._symmetry.offset - p[:, axis]
+        d[:, axis] = -d[:, axis]
+        return p, d, np.flatnonzero(~ok).tolist()
 
     def mirror_design(self) -> int:
         """Design helper: add the mirror image of every constraint and singularity that has no counterpart

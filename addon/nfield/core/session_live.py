@@ -24,10 +24,14 @@ import numpy as np
 LIVE_MARGIN_EXTRA_RINGS = 1
 #: a live edit that touches more than this fraction of the faces solves globally instead
 LIVE_MAX_REGION_FRACTION = 0.25
+#: live regions grow by fewer margin rings (down to none) when the full margin would exceed this many faces:
+#: the cost of a live solve grows with its region (its factorization), the changed faces must be in it, the
+#: margin only lets the edit blend further into the held field
+LIVE_REGION_BUDGET = 5000
 
 
 @dataclass
-class GlobalRecord:
+class BaseRecord:
     """What the last global exact solve used and found: the base for live local solves."""
 
     key: tuple               # everything but the guide field: a live solve needs the same operators and settings
@@ -40,9 +44,10 @@ class SessionLive:
     """Mixin of DesignSession (state lives on the session)."""
 
     def _init_live(self) -> None:
-        self._global_record: GlobalRecord | None = None
+        self._base_record: BaseRecord | None = None
         self._live_solver = None
-        self._live_key = None
+        self._live_key = None         # ((base version, mirror), region, weights there) of the live solver
+        self._base_version = 0        # bumped by every global solve (the values a live solver holds fixed)
         self._live_in_solver: dict[str, dict] = {"dir": {}, "vec": {}, "sing": {}}
         self._global_due = False
 
@@ -50,30 +55,50 @@ class SessionLive:
         s = self._settings
         return (self._ops_token, s["order"], s["strength"], inputs.kind, inputs.frozen_key)
 
-    def _remember_global(self, inputs, raw: np.ndarray) -> None:
+    def _remember_base(self, inputs, raw: np.ndarray, live: bool = False) -> None:
+        """Record a solve as the base of the next live edit: a global one, or a live one (then the global
+        solve stays due)."""
         T = self.mesh.num_triangles
         value = np.zeros(T, dtype=np.complex128) if inputs.alignment is None else np.asarray(inputs.alignment)
         weight = np.ones(T) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)
-        self._global_record = GlobalRecord(self._record_key(inputs), value.copy(), weight.copy(), raw.copy())
-        self._global_due = False
+        self._base_record = BaseRecord(self._record_key(inputs), value.copy(), weight.copy(), raw.copy())
+        self._global_due = live
+        if not live:
+            self._base_version += 1
+
+    def _live_base_ready(self, inputs) -> bool:
+        """A live solve can start from the last solve: one was recorded for the same operators and settings,
+        and no region edit is in progress."""
+        rec = self._base_record
+        return rec is not None and self._region is None and rec.key == self._record_key(inputs)
 
     def _live_region(self, inputs) -> np.ndarray | None:
         """Triangles to re-solve for a live edit, or None when the edit should be solved globally (no global
         solve to start from, other settings, a region edit in progress, only targets changed, or too many
         faces changed)."""
-        rec = self._global_record
-        if rec is None or self._region is not None or rec.key != self._record_key(inputs):
+        rec = self._base_record
+        if not self._live_base_ready(inputs):
             return None
         T = self.mesh.num_triangles
         value = np.zeros(T, dtype=np.complex128) if inputs.alignment is None else np.asarray(inputs.alignment)
         weight = np.ones(T) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)
         weight_changed = weight != rec.weight
-        if not weight_changed.any():
+        if not weight_changed.any() and not self._global_due:
             return None  # the global factorization still holds: a right-hand-side update is cheaper
         changed = np.flatnonzero(weight_changed | (value != rec.value))
+        if not changed.size:
+            return None
         nm = self._solve_native_mesh()
         rings = 2 * self._settings["order"] + LIVE_MARGIN_EXTRA_RINGS
         region = _grow(nm, changed, rings)
+        if len(region) > LIVE_REGION_BUDGET:  # the widest narrower margin within the budget (the seeds are ring 1)
+            narrower = changed
+            for r in range(2, rings):
+                wider = _grow(nm, changed, r)
+                if len(wider) > LIVE_REGION_BUDGET:
+                    break
+                narrower = wider
+            region = narrower
         # Whole rings of pinned singularities that the region touches (their rows cannot straddle its border).
         inside = np.zeros(T, dtype=bool)
         inside[region] = True
@@ -90,25 +115,42 @@ class SessionLive:
         return region
 
     def _solve_local(self, ops, inputs, region: np.ndarray):
-        """Exact solve of the region with every other face held at the last global solution."""
+        """Exact solve of the region with every other face held at the last solve's values. The region's
+        factorization is kept: the next live edit of the same region with the same weights there (only targets
+        changed, and no global solve in between: the held values are the same) reuses it and only updates the
+        right-hand side."""
         from ._loader import native
 
         s = self._settings
-        rec = self._global_record
-        active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
-        free = np.zeros(self.mesh.num_triangles, dtype=bool)
-        free[region] = True
-        frozen = np.flatnonzero(active & ~free)
-        solver = native().ExactSolver(ops, s["order"], s["strength"], inputs.alignment, inputs.kind,
-                                      progress=self.progress, frozen_faces=frozen, frozen_values=rec.raw[frozen],
-                                      **self._weight_arguments(inputs))
-        if self._mirror is not None:
-            solver.set_symmetry(self._mirror)
+        rec = self._base_record
+        weight = np.ones(len(region)) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)[region]
+        key = self._live_key
+        solver = self._live_solver
+        if (solver is not None and key is not None and key[0] == (self._base_version, id(self._mirror))
+                and np.array_equal(key[1], region) and np.array_equal(key[2], weight)):
+            solver.set_alignment(inputs.alignment)  # the same V_UU: right-hand side only
+            in_solver = self._live_in_solver
+        else:
+            active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
+            free = np.zeros(self.mesh.num_triangles, dtype=bool)
+            free[region] = True
+            frozen = np.flatnonzero(active & ~free)
+            solver = native().ExactSolver(ops, s["order"], s["strength"], inputs.alignment, inputs.kind,
+                                          progress=self.progress, frozen_faces=frozen,
+                                          frozen_values=rec.raw[frozen], **self._weight_arguments(inputs))
+            if self._mirror is not None:
+                solver.set_symmetry(self._mirror)
+            in_solver = {"dir": {}, "vec": {}, "sing": {}}
+            self._live_solver = solver
+            self._live_key = ((self._base_version, id(self._mirror)), region.copy(), weight.copy())
         inside = set(region.tolist())
         local = _restrict(inputs, inside, self)
-        self._live_in_solver = self._sync(solver, {"dir": {}, "vec": {}, "sing": {}}, ops, local)
+        try:
+            self._live_in_solver = self._sync(solver, in_solver, ops, local)
+        except Exception:
+            self._live_solver = self._live_key = None  # its constraint state is unknown now: rebuild next time
+            raise
         w = np.asarray(solver.solve(), dtype=np.complex128)
-        self._live_solver = solver
         self._global_due = True
         return w, float(solver.lambda_), list(solver.sign_fixed_faces)
 

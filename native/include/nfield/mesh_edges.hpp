@@ -7,6 +7,7 @@
 #pragma once
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "nfield/mesh.hpp"
@@ -39,5 +40,9 @@ class MeshEdges {
   std::vector<int> offsets_, faces_;
   std::vector<int> face_edges_;
 };
+
+/// InputError when `unknown` (vertex pairs that MeshEdges::find did not find) is not empty: "<count> <what>
+/// edge(s) are not edges of the mesh's usable faces, e.g. (a, b) ..." (the first five).
+void refuse_unknown_edges(const std::vector<std::array<int, 2>>& unknown, const std::string& what);
 
 }  // namespace nfield
