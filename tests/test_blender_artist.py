@@ -276,17 +276,21 @@ def test_glyph_spacing_in_perspective_and_on_thin_parts(scene):
     assert np.array_equal(both[both < len(front)], alone)
 
 
+def _solved_sphere(scene):
+    """The scripting API, the results module, the sphere solved once and its session cache entry."""
+    nb = _nb(scene)
+    obj = import_obj("sphere.obj")
+    nb.solve(obj)
+    entry = blender_module(scene, "session_cache").get_entry_cached(obj)
+    return nb, blender_module(scene, "results"), obj, entry
+
+
 def test_undo_history_is_bounded(scene, monkeypatch):
     """The fields remembered for undo are the newest HISTORY_SIZE states and no more bytes than
     HISTORY_BYTES (the newest result is always kept, whatever its size)."""
     from types import SimpleNamespace
 
-    nb = _nb(scene)
-    results = blender_module(scene, "results")
-    session_cache = blender_module(scene, "session_cache")
-    obj = import_obj("sphere.obj")
-    nb.solve(obj)
-    entry = session_cache.get_entry_cached(obj)
+    nb, results, obj, entry = _solved_sphere(scene)
     monkeypatch.setattr(results, "HISTORY_BYTES", 3 * 8000)
     fakes = []
     for s in range(6):  # six states (strengths), each result holding 8000 bytes of arrays
@@ -304,12 +308,7 @@ def test_undo_history_is_bounded(scene, monkeypatch):
 def test_guides_read_from_mesh_data_are_never_restored_from_memory(scene):
     """Feature alignment reads marked edges, which the key of a remembered field cannot see: with it on, no
     field is remembered (undo re-solves in the background instead of showing a field of other edges)."""
-    nb = _nb(scene)
-    results = blender_module(scene, "results")
-    session_cache = blender_module(scene, "session_cache")
-    obj = import_obj("sphere.obj")
-    nb.solve(obj)
-    entry = session_cache.get_entry_cached(obj)
+    nb, results, obj, entry = _solved_sphere(scene)
     assert results.remembered_result(obj, entry) is entry.result
     obj.nfield.live_update = False
     obj.nfield_guides.use_features = True

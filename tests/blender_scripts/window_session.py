@@ -220,21 +220,47 @@ def pick_face():
     return None
 
 
-def wait_for_drag():
+def await_drag(pressed: str, dragged: str, deadline: float, timed_out, then):
+    """Timer body shared by both drags: write `pressed` once the tool has the press (the test starts moving
+    the mouse only then: on a loaded machine Blender can take a second to handle the press, and it reads the
+    cursor position when it does), wait for the test's file `dragged`, then run `then` a second later (the
+    last redraw happens). After `deadline` seconds from the start: timed_out() instead."""
     from nfield.blender import tool_common
 
-    if tool_common.last_press and not STATE.get("press_seen"):
-        # the tool has the press: the test starts dragging only now (on a loaded machine Blender can take
-        # a second to handle the press, and it reads the cursor position when it does)
-        STATE["press_seen"] = True
-        out("pressed.json", {"mouse": list(tool_common.last_press.get("mouse", []))})
-    if not os.path.exists(os.path.join(WORKDIR, "dragged")):
-        if time.time() - STATE["t0"] > 240:
-            fail("timed out waiting for the test's drag")
-            return None
-        return 0.2
-    bpy.app.timers.register(report, first_interval=1.0)  # let the last redraw happen
-    return None
+    if tool_common.last_press and not STATE.get(pressed):
+        STATE[pressed] = True
+        out(pressed, {"mouse": list(tool_common.last_press.get("mouse", []))})
+    if os.path.exists(os.path.join(WORKDIR, dragged)):
+        bpy.app.timers.register(then, first_interval=1.0)
+        return None
+    if time.time() - STATE["t0"] > deadline:
+        timed_out()
+        return None
+    return 0.2
+
+
+def wait_for_drag():
+    return await_drag("pressed.json", "dragged", 240, lambda: fail("timed out waiting for the test's drag"), report)
+
+
+def screen_direction(region, rv3d, obj, face, direction):
+    """The object-space `direction` at `face`'s centre as Blender's own projection shows it: (pixel vector
+    of a short step along it, the centre's pixel); independent of the tool's math."""
+    mw = obj.matrix_world
+    c = obj.data.polygons[face].center
+    eps = 0.02 * obj.dimensions.length
+    a = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ c)
+    b = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ (c + Vector(direction).normalized() * eps))
+    return [b.x - a.x, b.y - a.y], [a.x, a.y]
+
+
+def screenshot(name):
+    """The window as it is now, saved as WORKDIR/name; returns the path."""
+    win, area, region = view3d()
+    shot = os.path.join(WORKDIR, name)
+    with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
+        bpy.ops.screen.screenshot(filepath=shot)
+    return shot
 
 
 def report():
@@ -265,15 +291,9 @@ def report():
         res = {"face": face, "aimed_face": STATE["face"], "press_offset_px": press_offset, "constraints": cons,
                "press": STATE["press"], "target": STATE["target"], "n": st.n, "undo_steps": None}
         if item is not None:
-            # the stored (object-space) direction seen on screen, independently of the tool's math:
-            c = obj.data.polygons[face].center
-            eps = 0.02 * obj.dimensions.length
-            d = Vector(item.direction).normalized()
-            a = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ c)
-            b = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ (c + d * eps))
-            res["screen_direction"] = [b.x - a.x, b.y - a.y]
+            res["screen_direction"], _ = screen_direction(region, rv3d, obj, face, item.direction)
             nrm = obj.data.polygons[face].normal
-            res["tangent_residual"] = abs(d.dot(nrm))
+            res["tangent_residual"] = abs(Vector(item.direction).normalized().dot(nrm))
         before, after = STATE["attr_before"], attr_values(obj)
         res["attr_max_change"] = float(np.max(np.linalg.norm(after - before, axis=1)))
         res["attr_face_before"] = before[face].tolist()
@@ -283,10 +303,7 @@ def report():
 
         res["overlay_stats"] = overlay.last_build_stats()
         res["tool_press"] = dict(tool_common.last_press)
-        shot = os.path.join(WORKDIR, "window.png")
-        with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
-            bpy.ops.screen.screenshot(filepath=shot)
-        res["screenshot"] = shot
+        res["screenshot"] = screenshot("window.png")
         out("result.json", res)
     except Exception:  # noqa: BLE001
         out("result.json", {"error": traceback.format_exc()})
@@ -333,19 +350,11 @@ def reaim_ready():
 
 
 def reaim_wait():
-    from nfield.blender import tool_common
+    def timed_out():
+        out("reaim.json", {"error": "timed out waiting for the test's second drag"})
+        bpy.app.timers.register(panel_start, first_interval=0.5)
 
-    if tool_common.last_press and not STATE.get("press2_seen"):
-        STATE["press2_seen"] = True
-        out("pressed2.json", {"mouse": list(tool_common.last_press.get("mouse", []))})
-    if not os.path.exists(os.path.join(WORKDIR, "dragged2")):
-        if time.time() - STATE["t0"] > 400:
-            out("reaim.json", {"error": "timed out waiting for the test's second drag"})
-            bpy.app.timers.register(panel_start, first_interval=0.5)
-            return None
-        return 0.2
-    bpy.app.timers.register(reaim_report, first_interval=1.0)
-    return None
+    return await_drag("pressed2.json", "dragged2", 400, timed_out, reaim_report)
 
 
 def reaim_report():
@@ -362,13 +371,8 @@ def reaim_report():
                "press_face": tool_common.last_press.get("face"), "target": STATE["reaim_target"]}
         item = next((c for c in st.constraints if c.face == STATE["reaim_face"]), None)
         if item is not None:
-            mw = obj.matrix_world
-            c = obj.data.polygons[item.face].center
-            eps = 0.02 * obj.dimensions.length
-            a = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ c)
-            b = view3d_utils.location_3d_to_region_2d(region, rv3d, mw @ (c + Vector(item.direction).normalized() * eps))
-            res["screen_direction"] = [b.x - a.x, b.y - a.y]
-            res["centroid_px"] = [a.x, a.y]
+            res["screen_direction"], res["centroid_px"] = screen_direction(region, rv3d, obj, item.face,
+                                                                           item.direction)
         out("reaim.json", res)
     except Exception:  # noqa: BLE001
         out("reaim.json", {"error": traceback.format_exc()})
@@ -458,11 +462,7 @@ def panel_measure():
 
 def panel_popover_shot():
     try:
-        win, area, region = view3d()
-        shot = os.path.join(WORKDIR, "panel.png")
-        with bpy.context.temp_override(window=win, area=area, region=region, screen=win.screen):
-            bpy.ops.screen.screenshot(filepath=shot)
-        out("panel_shown.json", {"popover": STATE.get("popover"), "screenshot": shot})
+        out("panel_shown.json", {"popover": STATE.get("popover"), "screenshot": screenshot("panel.png")})
     except Exception:  # noqa: BLE001
         out("panel_shown.json", {"error": traceback.format_exc()})
     bpy.app.timers.register(panel_closed_wait, first_interval=0.5)
@@ -608,6 +608,8 @@ def undo_idle():
     """Control 1: the same 50 ms timer while nothing runs (no redraw: it ticks on time on any machine)."""
     try:
         now = time.time()
+        if "idle" not in UNDO:  # the sidebar was only needed for the panel: the controls and the undo share
+            view3d()[1].spaces.active.show_region_ui = False  # one window layout, the viewport alone
         UNDO.setdefault("idle", []).append(now)
         if now - UNDO["idle"][0] < CONTROL_S:
             return 0.05

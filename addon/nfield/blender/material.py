@@ -31,19 +31,12 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 
 from . import api
+from .choices import SHADING_DIRECTION_ITEMS, SHADING_SOURCE_ITEMS
 from .errors import NFieldError
 from .operator_base import NFieldObjectOperator
 
 __all__ = ["build", "find_socket", "ensure_nodes", "NFIELD_OT_material_anisotropic", "register", "unregister"]
 
-SOURCE_ITEMS = [
-    ("FACE", "Face Direction", "The face attribute (one direction per polygon; exact for n = 2)"),
-    ("POINT", "Smoothed Point Direction", "The smoothed point attribute (interpolated; smoother, may show seams)"),
-]
-DIRECTION_ITEMS = [
-    ("FIELD", "Field Direction", "Highlight stretched across the field: the tangent follows the field direction"),
-    ("PERPENDICULAR", "Perpendicular", "The tangent is cross(normal, field direction) (for n = 2 and 4)"),
-]
 
 #: BSDF nodes with a Tangent input: bl_idname -> identifiers of the anisotropy socket (first found wins)
 ANISOTROPIC_BSDFS = {
@@ -276,8 +269,8 @@ class NFIELD_OT_material_anisotropic(NFieldObjectOperator, bpy.types.Operator):
 
     anisotropy: FloatProperty(name="Anisotropy", default=0.8, min=0.0, max=1.0, subtype="FACTOR",
                               description="Amount of anisotropy (0 = isotropic); Cycles only")
-    direction: EnumProperty(name="Direction", items=DIRECTION_ITEMS, default="FIELD")
-    source: EnumProperty(name="Attribute", items=SOURCE_ITEMS, default="FACE")
+    direction: EnumProperty(name="Direction", items=SHADING_DIRECTION_ITEMS, default="FIELD")
+    source: EnumProperty(name="Attribute", items=SHADING_SOURCE_ITEMS, default="FACE")
     material: StringProperty(name="Material", default="",
                              description="Existing material to update (empty: the object's nfield material, "
                                          "created if needed)")
