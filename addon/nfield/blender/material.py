@@ -14,10 +14,11 @@ raises NFieldError naming the node, the Blender version and the sockets the node
 BSDF is isotropic (no Tangent): it is skipped; its Anisotropic BSDF and the Principled BSDF are driven.
 
 Which attribute: the face attribute (default) is one of the n directions per polygon and is constant over a
-polygon; the tangent's sign does not matter to anisotropic reflection, so for n = 2 it is exact. The point
-attribute (smoothed) interpolates across triangles; where neighbouring vertices report opposite signs (or, for
-n = 4, different directions) the interpolated tangent turns, so it is smoother on fine meshes but can show
-seams. For n = 4 (and 3, 6) each polygon reports *one* of its n directions without a global choice, so the
+polygon; the tangent's sign does not matter to anisotropic reflection, so for n = 2 it is exact, but where the
+field turns quickly from face to face the reflection shows the facets. The point attribute (smoothed)
+interpolates across triangles, so the reflection is smooth; its directions are combed (each vertex reports the
+one of its n directions that agrees with its neighbours), and where neighbours still disagree -- along a few
+paths from singularities of fractional index -- the interpolated tangent turns through zero: a thin seam. For n = 4 (and 3, 6) each polygon reports *one* of its n directions without a global choice, so the
 highlight follows the field direction on some polygons and its perpendicular on others: use n = 2 for shading.
 
 Only Cycles renders anisotropy; EEVEE ignores the Tangent/anisotropy inputs (the panel says so).
