@@ -187,7 +187,21 @@ def main(argv=None) -> int:
     summary.update(files=files, seconds=timings, total_seconds=round(time.perf_counter() - t_start, 2),
                    blender=bpy.app.version_string)
     print(json.dumps(summary, indent=2))
+    _end_bpy(bpy, nb)
     return 0
+
+
+def _end_bpy(bpy, nb) -> None:
+    """Leave PyPI bpy cleanly: unregister the add-on (bpy 4.5 hangs at exit while an add-on property with an
+    update callback is registered) and, in bpy older than 4.3 (whose exit crashes once any add-on registered
+    one, a Blender bug), end the process here, after flushing the output."""
+    nb.unregister()
+    if bpy.app.version < (4, 3):
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
 
 
 def design_rocker_arm(nb, obj, features: bool = True) -> None:
