@@ -20,8 +20,8 @@ anisotropically, hatch it, render with Cycles on the CPU and save an editable .b
 
 ``--gallery`` renders the README's gallery instead: the same images at 1280 x 720 with more samples, plus
 the double torus (tests/data/eight.off) in brushed steel with its field, its perpendicular and without
-anisotropy, and stores the PNGs with a 256-colour palette so that they stay a few hundred KB
-(``--out docs/images`` replaces the committed pictures).
+anisotropy, and stores the PNGs with a 256-colour palette (32 greys for the hatching) so that they stay a
+few hundred KB (``--out docs/images`` replaces the committed pictures).
 
 Prints a JSON summary (timings, counts, files) at the end.
 """
@@ -106,12 +106,12 @@ def main(argv=None) -> int:
     def lap(key, t0):
         timings[key] = round(time.perf_counter() - t0, 3)
 
-    def render(scene, name):
+    def render(scene, name, colors=256):
         t = time.perf_counter()
         path = out / f"{name}.png"
         studio.render(scene, path)
         if args.gallery:
-            palette_png(path)
+            palette_png(path, colors, dither=colors > 32)
         timings[f"render_{name}"] = round(time.perf_counter() - t, 3)
         files[name] = str(path)
 
@@ -157,7 +157,7 @@ def main(argv=None) -> int:
     obj.active_material = nb.hatching.ink_material("Paper", PAPER)
     studio.clear_lights(scene)
     studio.paper_studio(scene, obj)
-    render(scene, "demo_hatching")
+    render(scene, "demo_hatching", colors=32)
     obj.active_material = mat
 
     # --- save the editable design
@@ -266,15 +266,17 @@ def _second_mesh(bpy, nb, studio, args, render, timings) -> dict:
     return {"mesh": SECOND_MESH.name, "faces": len(me.polygons), "singularities": len(result.singularities)}
 
 
-def palette_png(path: Path) -> None:
-    """Store a render with an adaptive 256-colour palette (a third of the size of the RGB PNG, no visible
-    banding on these smooth renders); left as it is where Pillow is missing."""
+def palette_png(path: Path, colors: int = 256, dither: bool = True) -> None:
+    """Store a render with an adaptive palette of `colors` (256 with dithering: a third of the size of the RGB
+    PNG and no visible banding on these smooth renders; the hatching needs only a few greys, 32 without
+    dithering); left as it is where Pillow is missing."""
     try:
         from PIL import Image
     except ImportError:
         return
     with Image.open(path) as im:
-        small = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.FLOYDSTEINBERG)
+        small = im.convert("RGB").quantize(colors=colors, method=Image.Quantize.MEDIANCUT,
+                                           dither=Image.Dither.FLOYDSTEINBERG if dither else Image.Dither.NONE)
     small.save(path, optimize=True)
 
 
