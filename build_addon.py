@@ -36,7 +36,7 @@ BUILD_ROOT = ROOT / "build"
 
 # The main job that `demo` runs (from the repository root, with PYTHONPATH=addon, in .venv): headless PyPI
 # bpy designs a field on the rocker arm, renders out/demo_*.png with Cycles and saves out/demo.blend.
-DEMO_COMMAND = ["demo/demo.py", "--out", "out"]
+DEMO_COMMAND = ["examples/demo/demo.py", "--out", "out"]
 
 # Debian packages the project needs (build, tests, later Blender/Xvfb and sanitizer/fuzz work).
 APT_PACKAGES = [

@@ -224,6 +224,42 @@ def end_bpy_process(code: int = 0) -> None:
     sys.exit(code)
 
 
+def run_bpy_script(script: Path, out_dir: Path, timeout: float = 300) -> tuple[dict, float]:
+    """Runs `script` (a test file that does its Blender work when run as a script) in its own process of this
+    Python with PYTHONPATH=addon, so it never shares a process with the packaged extension that
+    blender_support installs; returns the JSON its last stdout line holds and the seconds it took. Skips
+    (with the reason printed) where this Python has no PyPI bpy."""
+    import importlib.util
+    import json
+    import subprocess
+    import time
+
+    if importlib.util.find_spec("bpy") is None:
+        print("SKIP: bpy (PyPI) is not installed")
+        pytest.skip("bpy (PyPI) is not installed")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT / "addon") + os.pathsep + env.get("PYTHONPATH", "")
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(Path(script).resolve()), str(out_dir)], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+    seconds = time.perf_counter() - t0
+    assert proc.returncode == 0, f"{Path(script).name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return json.loads(proc.stdout.strip().splitlines()[-1]), seconds
+
+
+def bpy_script_main(work) -> None:
+    """The script side of run_bpy_script: `work(out_dir)` with the directory given as the first argument
+    (created), its result printed as the last line of JSON, then the process ended (end_bpy_process)."""
+    import json
+
+    out = Path(sys.argv[1])
+    out.mkdir(parents=True, exist_ok=True)
+    result = work(out)
+    sys.stdout.flush()
+    print(json.dumps(result))
+    end_bpy_process(0)
+
+
 @pytest.hookimpl(trylast=True)
 def pytest_sessionfinish(session, exitstatus):
     session.config._nfield_exitstatus = int(exitstatus)

@@ -167,17 +167,130 @@ def test_constraint_arrows_keep_a_screen_space_minimum(scene):
     assert out[2] == pytest.approx(0.5 * 8.0)
 
 
+def _grid(n, z=0.0, extent=1.0):
+    """Centroids of an n x n grid of unit-normal (0, 0, 1) faces covering [-extent, extent]^2 at height z."""
+    t = (np.arange(n) + 0.5) / n * 2 * extent - extent
+    x, y = np.meshgrid(t, t)
+    c = np.c_[x.ravel(), y.ravel(), np.full(n * n, z)]
+    return c, np.tile([0.0, 0.0, 1.0], (n * n, 1))
+
+
+def _ortho(s, width, height):
+    """Orthographic object -> clip matrix of scale s: x maps to s * width / 2 pixels per unit, as y does."""
+    return np.diag([s, s * width / height, -s, 1.0])
+
+
+def _perspective(eye_z, focal, width, height):
+    """A camera on the z axis at eye_z looking down -z (OpenGL projection; focal = 1 / tan(half fov x))."""
+    near, far = 0.01, 100.0
+    proj = np.array([[focal, 0, 0, 0], [0, focal * width / height, 0, 0],
+                     [0, 0, -(far + near) / (far - near), -2 * far * near / (far - near)], [0, 0, -1, 0]])
+    view = np.eye(4)
+    view[2, 3] = -eye_z
+    return proj @ view
+
+
+def test_pixels_per_unit(scene):
+    """Orthographic: s * width / 2 pixels per unit everywhere. Perspective: the largest singular value of the
+    projection's derivative, checked against finite differences along the three axes (a unit step along the
+    view axis moves a point off the axis towards the centre, so the largest is the sideways one here)."""
+    glyphs = blender_module(scene, "glyphs")
+    width, height = 800, 600
+    pts = np.random.default_rng(0).uniform(-1, 1, (50, 3))
+    assert np.allclose(glyphs.pixels_per_unit(pts, _ortho(0.1, width, height), (width, height)), 0.1 * width / 2)
+    mvp = _perspective(5.0, 1.5, width, height)
+    got = glyphs.pixels_per_unit(pts, mvp, (width, height))
+    eps = 1e-6
+    base, _ = glyphs.project_to_region(pts, mvp, (width, height))
+    fd = [np.linalg.norm(glyphs.project_to_region(pts + eps * e, mvp, (width, height))[0] - base, axis=1) / eps
+          for e in np.eye(3)]
+    assert np.all(got >= np.max(fd, axis=0) * (1 - 1e-4))  # the largest over all directions >= along any axis
+    # on the view axis at distance d: focal * width / 2 / d pixels per unit, exactly
+    on_axis = glyphs.pixels_per_unit(np.array([[0.0, 0.0, 1.0]]), mvp, (width, height))
+    assert on_axis[0] == pytest.approx(1.5 * width / 2 / 4.0)
+    behind = glyphs.pixels_per_unit(np.array([[0.0, 0.0, 6.0]]), mvp, (width, height))
+    assert behind[0] == 0.0
+
+
+def test_glyphs_are_spread_evenly_on_screen(scene):
+    """Glyph faces are about spacing_px apart on screen, whatever the zoom: zooming in by 2 halves their
+    spacing on the surface and, on an object that stays inside the view, shows four times as many; faces
+    off screen or behind the viewer are never picked; the cap holds."""
+    glyphs = blender_module(scene, "glyphs")
+    width, height, spacing = 800, 600, 20.0
+    c, nrm = _grid(200, extent=1.0)  # 40,000 faces, 0.01 apart
+    counts, cells = [], []
+    for s in (0.2, 0.4):  # the grid covers 160 x 160 px, then 320 x 320 px: inside the region both times
+        faces, cell = glyphs.sample_on_screen(c, nrm, _ortho(s, width, height), (width, height), spacing, 20000)
+        counts.append(len(faces))
+        cells.append(float(np.median(cell)))
+        assert np.allclose(cell, spacing / (s * width / 2))  # orthographic: one level, cell = spacing on screen
+        px, _ = glyphs.project_to_region(c[faces], _ortho(s, width, height), (width, height))
+        d = np.linalg.norm(px[:, None, :] - px[None, :, :], axis=2)
+        np.fill_diagonal(d, np.inf)
+        nearest = d.min(axis=1)
+        # one face per cell, the one nearest its centre: neighbours sit one cell apart on screen, give or take
+        # the grid's own step (0.01 units = 0.8 / 1.6 px here)
+        assert np.median(nearest) == pytest.approx(spacing, abs=2.0), np.median(nearest)
+    assert cells[1] == pytest.approx(cells[0] / 2)
+    assert counts[1] == pytest.approx(4 * counts[0], rel=0.1), counts  # (160/20)^2 = 64 -> (320/20)^2 = 256
+    # zoomed in so far that the grid overflows the region: only faces on screen (plus the margin) are picked
+    s = 4.0
+    faces, _ = glyphs.sample_on_screen(c, nrm, _ortho(s, width, height), (width, height), spacing, 20000)
+    px, _ = glyphs.project_to_region(c[faces], _ortho(s, width, height), (width, height))
+    assert px[:, 0].min() >= -0.1 * width - 1 and px[:, 0].max() <= 1.1 * width + 1
+    assert px[:, 1].min() >= -0.1 * height - 1 and px[:, 1].max() <= 1.1 * height + 1
+    # the cap: a 2 px spacing would keep 6,400 faces of the 160 px grid; with a cap of 1,000 the cells grow
+    # by sqrt(count / cap) x 1.05 (a flat grid keeps 1 / cell^2 faces: about cap / 1.1 after one step)
+    faces, _ = glyphs.sample_on_screen(c, nrm, _ortho(0.2, width, height), (width, height), 2.0, 1000)
+    assert 800 <= len(faces) <= 1000 and len(np.unique(faces)) == len(faces), len(faces)
+    # behind the viewer: nothing
+    mvp = _perspective(-1.0, 1.5, width, height)  # the eye at z = -1 looks down -z, away from the grid
+    assert len(glyphs.sample_on_screen(c, nrm, mvp, (width, height), spacing, 20000)[0]) == 0
+
+
+def test_glyph_spacing_in_perspective_and_on_thin_parts(scene):
+    """In perspective each face's cell is spacing_px / pixels_per_unit rounded to a power-of-two level, so
+    glyphs keep about the same spacing on screen near and far (within a factor sqrt(2) of the level
+    rounding). A thin plate's back (normal away from the viewer) is sampled apart from its front, so the
+    visible front keeps every glyph it would have alone."""
+    glyphs = blender_module(scene, "glyphs")
+    width, height, spacing = 800, 600, 16.0
+    # a long strip receding from the eye: y along the view axis
+    t = np.linspace(-1.0, 1.0, 400)
+    x, y = np.meshgrid(np.linspace(-0.3, 0.3, 60), t)
+    c = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    nrm = np.tile([0.0, 0.0, 1.0], (len(c), 1))
+    tilt = np.array([[1, 0, 0, 0], [0, np.cos(1.2), -np.sin(1.2), 0], [0, np.sin(1.2), np.cos(1.2), 0], [0, 0, 0, 1]])
+    mvp = _perspective(3.0, 1.5, width, height) @ tilt
+    faces, cell = glyphs.sample_on_screen(c, nrm, mvp, (width, height), spacing, 20000)
+    on_screen = cell * glyphs.pixels_per_unit(c[faces], mvp, (width, height))
+    assert np.all(on_screen > spacing / np.sqrt(2) - 1e-9) and np.all(on_screen < spacing * np.sqrt(2) + 1e-9)
+    assert cell.max() / cell.min() >= 2.0  # the far end does use coarser cells
+    # a plate 0.004 thick (thinner than a cell): front alone vs front + back
+    front, nf = _grid(100, z=0.002)
+    back, nb_ = _grid(100, z=-0.002)
+    mvp = _ortho(0.2, width, height)
+    alone, _ = glyphs.sample_on_screen(front, nf, mvp, (width, height), spacing, 20000)
+    both, _ = glyphs.sample_on_screen(np.r_[front, back], np.r_[nf, -nb_], mvp, (width, height), spacing, 20000)
+    assert np.array_equal(both[both < len(front)], alone)
+
+
+def _solved_sphere(scene):
+    """The scripting API, the results module, the sphere solved once and its session cache entry."""
+    nb = _nb(scene)
+    obj = import_obj("sphere.obj")
+    nb.solve(obj)
+    entry = blender_module(scene, "session_cache").get_entry_cached(obj)
+    return nb, blender_module(scene, "results"), obj, entry
+
+
 def test_undo_history_is_bounded(scene, monkeypatch):
     """The fields remembered for undo are the newest HISTORY_SIZE states and no more bytes than
     HISTORY_BYTES (the newest result is always kept, whatever its size)."""
     from types import SimpleNamespace
 
-    nb = _nb(scene)
-    results = blender_module(scene, "results")
-    session_cache = blender_module(scene, "session_cache")
-    obj = import_obj("sphere.obj")
-    nb.solve(obj)
-    entry = session_cache.get_entry_cached(obj)
+    nb, results, obj, entry = _solved_sphere(scene)
     monkeypatch.setattr(results, "HISTORY_BYTES", 3 * 8000)
     fakes = []
     for s in range(6):  # six states (strengths), each result holding 8000 bytes of arrays
@@ -195,12 +308,7 @@ def test_undo_history_is_bounded(scene, monkeypatch):
 def test_guides_read_from_mesh_data_are_never_restored_from_memory(scene):
     """Feature alignment reads marked edges, which the key of a remembered field cannot see: with it on, no
     field is remembered (undo re-solves in the background instead of showing a field of other edges)."""
-    nb = _nb(scene)
-    results = blender_module(scene, "results")
-    session_cache = blender_module(scene, "session_cache")
-    obj = import_obj("sphere.obj")
-    nb.solve(obj)
-    entry = session_cache.get_entry_cached(obj)
+    nb, results, obj, entry = _solved_sphere(scene)
     assert results.remembered_result(obj, entry) is entry.result
     obj.nfield.live_update = False
     obj.nfield_guides.use_features = True

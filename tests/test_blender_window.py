@@ -29,11 +29,13 @@ Checks:
   lines fit (measured with ``blf`` in the UI font, not read from pixels); the panel is drawn as a popover
   and kept as tests/artifacts/blender_panel.png;
 * an undo to a state whose solve needs a spectral basis hands that solve to the worker: the UI timer keeps
-  ticking (see _check_undo for the bound).
+  ticking, with no gap of 0.5 s or more (see _check_undo);
+* zooming in spreads the field glyphs evenly on screen: more glyphs, closer together on the surface.
+Skipped (with the reason printed) when Xvfb, xdotool or blender are missing, and, after every other check
+passed, when a single redraw of the window already takes 0.5 s (the undo bound cannot be judged then).
 test_comb_brush_in_real_window (tests/blender_scripts/window_comb.py) drags the comb brush across the Stanford
 bunny: the comb attribute along the stroke, its direction against the drag measured with Blender's own ray
 casts, the solved field turning to it, one undo removing exactly the stroke; tests/artifacts/comb_tool.png.
-Skipped (with the reason printed) only when Xvfb, xdotool or blender are missing.
 """
 from __future__ import annotations
 
@@ -57,6 +59,10 @@ SCRIPT = ROOT / "tests" / "blender_scripts" / "window_session.py"
 ARTIFACTS = ROOT / "tests" / "artifacts"
 BLENDER = os.environ.get("NFIELD_GUI_BLENDER", "/usr/bin/blender")
 ANGLE_TOL_DEG = 3.0
+#: the window (and X screen): small enough that one redraw under software GL stays well below the undo bound
+#: on a loaded 2-core machine (1280 x 800: about 0.3 s at load 3, 0.6 s at load 7), large enough for the
+#: sidebar at its default width beside the viewport
+WINDOW = (960, 600)
 
 
 def _missing() -> str:
@@ -90,7 +96,7 @@ def _xdo(env, *args):
     subprocess.run(["xdotool", *map(str, args)], env=env, check=True, timeout=30)
 
 
-def _start_xvfb(tmp_path):
+def _start_xvfb(tmp_path, size=WINDOW):
     """(environment for GUI Blender on a fresh Xvfb display with a temporary user profile, the Xvfb process,
     the console log file). Skips the test (reason printed) without Xvfb, xdotool or Blender."""
     reason = _missing()
@@ -105,18 +111,18 @@ def _start_xvfb(tmp_path):
         env[key] = str(tmp_path / key.lower())
     env.pop("PYTHONPATH", None)
     env["NFIELD_CACHE_DIR"] = str(tmp_path / "bases")
-    xvfb = subprocess.Popen(["Xvfb", f":{display}", "-screen", "0", "1280x800x24", "-nolisten", "tcp"],
+    xvfb = subprocess.Popen(["Xvfb", f":{display}", "-screen", "0", f"{size[0]}x{size[1]}x24", "-nolisten", "tcp"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     time.sleep(1.0)
     assert xvfb.poll() is None, "Xvfb did not start"
     return env, xvfb, open(tmp_path / "blender.log", "w")
 
 
-def _start_blender(env, script, args, log):
+def _start_blender(env, script, args, log, size=WINDOW):
     """GUI Blender running `script` with `args` (the first: the work directory, created here)."""
     Path(args[0]).mkdir()
     return subprocess.Popen(
-        [BLENDER, "--factory-startup", "-noaudio", "--window-geometry", "0", "0", "1280", "800",
+        [BLENDER, "--factory-startup", "-noaudio", "--window-geometry", "0", "0", str(size[0]), str(size[1]),
          "--python", str(script), "--", *map(str, args)],
         env=env, stdout=log, stderr=subprocess.STDOUT)
 
@@ -169,6 +175,17 @@ def _check_toolbar(toolbar):
     assert "builtin.transform" in flat[:first], "the nfield tools come after the transform tools"
 
 
+def _check_zoom(zoom):
+    """Zooming in (the sphere 4.5x closer: from a small disc to most of the view) rebuilt the glyphs for the
+    new view: more glyphs, closer together on the surface (the cell size in object units falls with the
+    zoom), at the same spacing on screen."""
+    print("glyphs zoomed out / in:", json.dumps(zoom))
+    out, zin = zoom["out"], zoom["in"]
+    assert zin["glyphs"] > out["glyphs"], zoom
+    assert zin["median_cell"] < 0.5 * out["median_cell"], zoom
+    assert zin["spacing_px"] == out["spacing_px"], zoom
+
+
 def _check_reaim(reaim, ready2):
     """Pressing the arrowhead re-aimed the constraint (still one, on the same face) instead of adding one on
     the face under the arrowhead; the new direction points at the drag target (same tolerance argument as
@@ -200,26 +217,39 @@ def _check_panel(panel):
     assert len(lines) >= 3, "the long message was not wrapped over several lines"
 
 
-def _check_undo(undo):
-    """An undo to a state whose solve is slow (spectral basis not computed) hands the solve to the worker
-    thread: the UI keeps running its 50 ms timer.
+#: the done-when bound on the longest gap between 50 ms UI timer ticks after an undo during a pending solve
+UNDO_MAX_GAP_S = 0.5
 
-    Bound: the issue's 0.5 s, unless this Blender's own idle gap, measured in the same run just before
-    (the same timer with nothing running), is already larger: on a loaded 2-core machine with software GL
-    an idle Blender ticks only every one to three seconds. Then the gap may be up to twice the idle one.
-    Either way the check discriminates: the worker is still computing the basis at the end of the 10 s
-    window (asserted below), so a solve in the UI thread would leave one gap of at least 10 s."""
+
+def _check_undo(undo) -> str:
+    """An undo to a state whose solve is slow (spectral basis not computed) hands the solve to the worker
+    thread: the UI keeps running its 50 ms timer, with no gap of UNDO_MAX_GAP_S or more.
+
+    The same run measures two controls just before: the timer with nothing running (it ticks on time: Blender
+    only blocks its timers while it redraws, and with the viewport's progressive anti-aliasing off nothing
+    redraws when idle), and the timer redrawing the 3D view at every tick: the longest gap there is what one
+    redraw of this window costs now. An undo redraws the view at least once, so when a single redraw already
+    takes UNDO_MAX_GAP_S (a machine overloaded at test time), the bound cannot be judged: the caller skips
+    with this reason (returned), after every other check has passed. Otherwise the bound is asserted; it
+    discriminates: the worker is still computing the basis at the end of the 10 s window (asserted below), so
+    a solve in the UI thread would leave one gap of at least 10 s. Returns "" when the bound was asserted."""
     assert "error" not in undo, undo.get("error")
     print("undo:", json.dumps({k: v for k, v in undo.items() if k != "ticks"}, indent=1))
     assert undo["undo"] == ["FINISHED"], undo
     assert undo["after_undo"] == {"mode": "SPECTRAL", "k": 400, "constraints": 0}, undo["after_undo"]
-    assert undo["undo_seconds"] < 0.5, undo["undo_seconds"]
-    bound = max(0.5, 2.0 * undo["idle_max_gap"])
-    assert bound < 10.0, f"this Blender is too slow to tell (idle gap {undo['idle_max_gap']:.2f} s)"
-    assert undo["max_gap"] is not None and undo["max_gap"] < bound, (undo["max_gap"], undo["idle_max_gap"])
+    assert undo["undo_seconds"] < UNDO_MAX_GAP_S, undo["undo_seconds"]
     # the solve was handed to the worker (or is about to be), and the panel says the field is out of date
     assert undo["busy"] or undo["status"]["state"] == "running", undo["status"]
     assert "after undo" in undo["stale_text"], undo["stale_text"]
+    assert undo["max_gap"] is not None and undo["max_gap"] < 10.0, undo["max_gap"]  # never frozen
+    if undo["redraw_max_gap"] >= UNDO_MAX_GAP_S:
+        return (f"machine overloaded: one redraw of the test window blocks the UI for {undo['redraw_max_gap']:.2f} s "
+                f"(idle gap {undo['idle_max_gap']:.2f} s, load {' '.join(undo['load'])}), so the "
+                f"{UNDO_MAX_GAP_S} s bound cannot be judged; the longest gap after the undo was {undo['max_gap']:.2f} s")
+    assert undo["max_gap"] < UNDO_MAX_GAP_S, \
+        (f"the UI timer stopped for {undo['max_gap']:.2f} s after the undo (idle gap {undo['idle_max_gap']:.2f} s, "
+         f"one redraw {undo['redraw_max_gap']:.2f} s)")
+    return ""
 
 
 def test_constraint_drag_in_real_window(tmp_path, addon_zip):
@@ -283,12 +313,13 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
     assert "error" not in result, result.get("error")
     _assert_no_traceback(console)
     _check_toolbar(ready["toolbar"])
+    _check_zoom(ready["zoom"])
     _check_reaim(json.loads((work / "reaim.json").read_text()), json.loads((work / "ready2.json").read_text()))
     _check_panel(json.loads((work / "panel.json").read_text()))
     assert shown.get("popover") in (["FINISHED"], ["RUNNING_MODAL"], ["INTERFACE"]), shown
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(shown["screenshot"], ARTIFACTS / "blender_panel.png")
-    _check_undo(undo)
+    undo_skip = _check_undo(undo)
     print("spectral precompute:", json.dumps(spectral, indent=1))
     assert "error" not in spectral, spectral["error"]
     cancel, finish = spectral["cancel"], spectral["finish"]
@@ -339,6 +370,9 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
     period = 2 * math.pi / n
     off = min(ang % period, period - ang % period)
     assert math.degrees(off) < 1.0, f"attribute at face {face} is {math.degrees(off):.2f} deg off symmetry"
+    if undo_skip:  # every other check passed; only the responsiveness bound could not be judged
+        print(f"SKIP: {undo_skip}")
+        pytest.skip(undo_skip)
 
 
 COMB_SCRIPT = ROOT / "tests" / "blender_scripts" / "window_comb.py"

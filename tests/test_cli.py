@@ -284,7 +284,7 @@ def test_solve_human_summary(tmp_path):
 def test_solve_rocker_examples(tmp_path):
     cons = json.loads((EXAMPLES / "rocker_constraints.json").read_text())
     sing = json.loads((EXAMPLES / "rocker_singularities.json").read_text())
-    # index 1/2: a multiple of 1/n for this n = 4 and for the demo's n = 2 (demo/demo.py reads the same files)
+    # index 1/2: a multiple of 1/n for this n = 4 and for the demo's n = 2 (examples/demo/demo.py reads the same files)
     assert len(cons) == 4 and len(sing) == 1 and sing[0]["index"] == 0.5
     out = tmp_path / "rocker.npy"
     proc = run_cli("solve", ROCKER, "--n", "4", "--order", "2",

@@ -16,15 +16,12 @@ process with the packaged extension that tests/blender_support.py installs.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from conftest import run_bpy_script
 
 pytestmark = pytest.mark.blender
 
@@ -225,17 +222,7 @@ def _run_checks(out_dir: Path) -> dict:
 
 
 def test_hatching_curves(tmp_path):
-
-    if importlib.util.find_spec("bpy") is None:
-        pytest.skip("bpy (PyPI) is not installed")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT / "addon") + os.pathsep + env.get("PYTHONPATH", "")
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), str(tmp_path)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=300)
-    seconds = time.perf_counter() - t0
-    assert proc.returncode == 0, f"script failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    r = json.loads(proc.stdout.strip().splitlines()[-1])
+    r, seconds = run_bpy_script(Path(__file__), tmp_path)
     print(json.dumps(r, indent=1), f"{seconds:.1f} s")
 
     c = r["convert"]
@@ -272,11 +259,6 @@ def test_hatching_curves(tmp_path):
 
 
 if __name__ == "__main__":
-    out = Path(sys.argv[1])
-    out.mkdir(parents=True, exist_ok=True)
-    result = _run_checks(out)
-    sys.stdout.flush()
-    print(json.dumps(result))
-    from conftest import end_bpy_process
+    from conftest import bpy_script_main
 
-    end_bpy_process(0)
+    bpy_script_main(_run_checks)

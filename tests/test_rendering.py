@@ -28,15 +28,11 @@ process with another copy of the add-on (tests/blender_support.py installs the p
 """
 from __future__ import annotations
 
-import importlib.util
-import json
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from conftest import run_bpy_script
 
 pytestmark = pytest.mark.blender
 
@@ -190,16 +186,7 @@ def _mad(a, b) -> float:
 def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path):
     import numpy as np
 
-    if importlib.util.find_spec("bpy") is None:
-        pytest.skip("bpy (PyPI) is not installed")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT / "addon") + os.pathsep + env.get("PYTHONPATH", "")
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), str(tmp_path)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=300)
-    seconds = time.perf_counter() - t0
-    assert proc.returncode == 0, f"render script failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    info = json.loads(proc.stdout.strip().splitlines()[-1])
+    info, seconds = run_bpy_script(Path(__file__), tmp_path)
     img = {p.stem: np.load(p) for p in tmp_path.glob("*.npy")}
 
     assert img["aniso_d0"].mean() > 0.01, "the render is black: no light reaches the camera"
@@ -234,11 +221,6 @@ def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path):
 
 
 if __name__ == "__main__":
-    out = Path(sys.argv[1])
-    out.mkdir(parents=True, exist_ok=True)
-    result = _render_all(out)
-    sys.stdout.flush()
-    print(json.dumps(result))
-    from conftest import end_bpy_process
+    from conftest import bpy_script_main
 
-    end_bpy_process(0)
+    bpy_script_main(_render_all)

@@ -53,3 +53,26 @@ def test_polygon_tangent_directions_and_singularity_index():
     out = shading.polygon_tangent_directions(d, nrm)
     assert np.allclose(out, [[1, 0, 0], [0, 0, 0], [2 ** -0.5, 2 ** -0.5, 0]])
     assert shading.vertex_singularity_index(4, [(1, 0.25), (3, -0.5)]).tolist() == [0, 0.25, 0, -0.5]
+
+
+def test_smoothed_directions_are_combed_to_agree_with_their_neighbours():
+    """A smooth field without singularities that turns by 3 radians across a bumpy grid: each vertex's
+    principal angle would jump at the branch cut (neighbours pointing opposite ways, a seam for a renderer
+    interpolating the tangent); combed, every pair of neighbouring vertices agrees: for n = 2 their
+    directions make an acute angle, for n = 4 an angle below 45 degrees. The field turns by at most 0.1 rad
+    between neighbours here, so a correct comb is never near those thresholds."""
+    v, t = _grid(nx=31, ny=21, bump=0.1)
+    rng = np.random.default_rng(3)
+    centre_x = v[t].mean(axis=1)[:, 0]
+    edges = np.unique(np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1), axis=0)
+    for n, limit in ((2, 90.0), (4, 45.0)):
+        d, _ = _tangent_dirs(v, t, 3.0 * centre_x + 2 * np.pi / n * rng.integers(0, n, len(t)))
+        s = shading.vertex_smoothed_directions(v, t, d, n)
+        a, b = s[edges[:, 0]], s[edges[:, 1]]
+        angle = np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b)))
+        assert angle.max() < limit, (n, angle.max())
+        # still the same n-direction set at every vertex as the uncombed average (a rotation by 2 pi k / n)
+        d2, _ = _tangent_dirs(v, t, 3.0 * centre_x)
+        ref = shading.vertex_smoothed_directions(v, t, d2, n)
+        ang = np.arctan2(np.linalg.norm(np.cross(s, ref), axis=1), np.einsum("ij,ij->i", s, ref))
+        assert np.all(np.abs(np.sin(n * ang / 2)) < 1e-9)

@@ -329,17 +329,24 @@ def begin_region(obj, faces: Iterable[int] | None = None) -> int:
     return len(faces)
 
 
-def commit_region(obj):
-    """Make the region's field a layer (frozen in later global solves). Returns the new NFieldLayer."""
+def _end_region_in_session(obj, method: str, not_active: str):
+    """Call the session's region method `method` (commit_region / cancel_region) for `obj`, whose region edit
+    must be active (else NFieldError(not_active)). Returns the cache entry and the session."""
     check_mesh_object(obj)
-    st = obj.nfield
-    if not st.region_active:
-        raise NFieldError("no region edit in progress (begin a region first)")
-    arrays, entry, session = _session_with_field(obj)
+    if not obj.nfield.region_active:
+        raise NFieldError(not_active)
+    _arrays, entry, session = _session_with_field(obj)
     try:
-        session.commit_region()
+        getattr(session, method)()
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
+    return entry, session
+
+
+def commit_region(obj):
+    """Make the region's field a layer (frozen in later global solves). Returns the new NFieldLayer."""
+    entry, session = _end_region_in_session(obj, "commit_region", "no region edit in progress (begin a region first)")
+    st = obj.nfield
     result = session.field if session.field is not None else entry.result
     store_result(obj, entry, result)
     faces = [it.face for it in st.region_faces]
@@ -356,15 +363,7 @@ def commit_region(obj):
 
 def cancel_region(obj) -> None:
     """Drop the region edit: back to the field before begin_region."""
-    check_mesh_object(obj)
-    st = obj.nfield
-    if not st.region_active:
-        raise NFieldError("no region edit in progress")
-    arrays, entry, session = _session_with_field(obj)
-    try:
-        session.cancel_region()
-    except ValueError as exc:
-        raise NFieldError(str(exc)) from None
+    entry, session = _end_region_in_session(obj, "cancel_region", "no region edit in progress")
     design.end_region(obj)
     saved = entry.extra.pop("region_saved_design", None)
     if saved is not None:  # the stored design goes back to its state before begin_region, like the session

@@ -41,6 +41,15 @@ SOLVER_MODE_ITEMS = [
     ("EXACT", "Exact", "Exact sparse solve (live editing re-uses one factorization)"),
     ("SPECTRAL", "Spectral", "Solve in the span of the k lowest eigenfields (needs a precomputed basis)"),
 ]
+#: the anisotropic material (material.build): which attribute is the tangent, and the field or its perpendicular
+SHADING_SOURCE_ITEMS = [
+    ("FACE", "Face Direction", "The face attribute (one direction per polygon; exact for n = 2)"),
+    ("POINT", "Smoothed Point Direction", "The smoothed point attribute (interpolated; smoother, may show seams)"),
+]
+SHADING_DIRECTION_ITEMS = [
+    ("FIELD", "Field Direction", "Highlight stretched across the field: the tangent follows the field direction"),
+    ("PERPENDICULAR", "Perpendicular", "The tangent is cross(normal, field direction) (for n = 2 and 4)"),
+]
 CONSTRAINT_KIND_ITEMS = [
     ("DIRECTION", "Direction", "Hard direction constraint: one of the n directions points along it"),
     ("VECTOR", "Vector", "Hard n-vector constraint: direction and magnitude"),

@@ -165,30 +165,40 @@ def _clamped_index(index: int, items) -> int:
     return max(0, min(index, len(items) - 1))
 
 
+def _set_item(st, items: str, active: str, item, values: dict):
+    """Write `values` into `item` of collection st.<items>, adding a new item (made the active one, st.<active>)
+    when `item` is None. Returns the item."""
+    if item is None:
+        coll = getattr(st, items)
+        item = coll.add()
+        setattr(st, active, len(coll) - 1)
+    for key, value in values.items():
+        setattr(item, key, value)
+    return item
+
+
+def _remove_item(st, items: str, active: str, key: str, value: int, missing) -> None:
+    """Remove the item of st.<items> whose `key` is `value` (a stale one if no live one) and keep the active
+    index st.<active> in range; NFieldError(missing(sorted keys present)) when there is none."""
+    coll = getattr(st, items)
+    idx = _index_of(coll, key, value)
+    if idx is None:
+        raise NFieldError(missing(sorted(getattr(it, key) for it in coll) or "none"))
+    coll.remove(idx)
+    setattr(st, active, _clamped_index(getattr(st, active), coll))
+
+
 def set_constraint(obj, face: int, direction, kind: str, centroid) -> object:
     """Create or re-aim the live constraint on `face` (validated by the caller). Returns the item."""
-    st = obj.nfield
-    item = constraint_item(obj, face)
-    if item is None:
-        item = st.constraints.add()
-        st.active_constraint_index = len(st.constraints) - 1
-    item.face = face
-    item.direction = tuple(direction)
-    item.kind = kind
-    item.stale = False
-    item.centroid = tuple(centroid)
-    return item
+    return _set_item(obj.nfield, "constraints", "active_constraint_index", constraint_item(obj, face),
+                     {"face": face, "direction": tuple(direction), "kind": kind, "stale": False,
+                      "centroid": tuple(centroid)})
 
 
 def remove_constraint(obj, face: int) -> None:
     """Remove the constraint on `face` (a stale one with that face number if no live one)."""
-    st = obj.nfield
-    idx = _index_of(st.constraints, "face", face)
-    if idx is None:
-        faces = sorted(c.face for c in st.constraints)
-        raise NFieldError(f"face {face} has no constraint (constrained faces: {faces or 'none'})")
-    st.constraints.remove(idx)
-    st.active_constraint_index = _clamped_index(st.active_constraint_index, st.constraints)
+    _remove_item(obj.nfield, "constraints", "active_constraint_index", "face", face,
+                 lambda faces: f"face {face} has no constraint (constrained faces: {faces})")
 
 
 def clear_constraints(obj, stale_only: bool = False) -> int:
@@ -206,27 +216,15 @@ def clear_constraints(obj, stale_only: bool = False) -> int:
 def set_singularity(obj, vertex: int, numerator: int, position) -> object:
     """Create or change the live singularity at `vertex` (index = numerator / n; validated by the caller)."""
     st = obj.nfield
-    item = singularity_item(obj, vertex)
-    if item is None:
-        item = st.singularities.add()
-        st.active_singularity_index = len(st.singularities) - 1
-    item.vertex = vertex
-    item.numerator = int(numerator)
-    item.denominator = st.n
-    item.stale = False
-    item.position = tuple(position)
-    return item
+    return _set_item(st, "singularities", "active_singularity_index", singularity_item(obj, vertex),
+                     {"vertex": vertex, "numerator": int(numerator), "denominator": st.n, "stale": False,
+                      "position": tuple(position)})
 
 
 def remove_singularity(obj, vertex: int) -> None:
     """Remove the singularity at `vertex` (a stale one with that vertex number if no live one)."""
-    st = obj.nfield
-    idx = _index_of(st.singularities, "vertex", vertex)
-    if idx is None:
-        verts = sorted(s.vertex for s in st.singularities)
-        raise NFieldError(f"vertex {vertex} has no prescribed singularity (pinned vertices: {verts or 'none'})")
-    st.singularities.remove(idx)
-    st.active_singularity_index = _clamped_index(st.active_singularity_index, st.singularities)
+    _remove_item(obj.nfield, "singularities", "active_singularity_index", "vertex", vertex,
+                 lambda verts: f"vertex {vertex} has no prescribed singularity (pinned vertices: {verts})")
 
 
 def clear_singularities(obj) -> int:
@@ -321,6 +319,27 @@ def restore(obj, saved: tuple) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ remapping
+def _remap_items(items, key: str, position: str, points: np.ndarray, what: str, tol: float, notes: list,
+                 mention_stale: bool) -> None:
+    """Move each item's `key` (face / vertex) to the element of `points` nearest its stored `position` (within
+    `tol`, one item per element); items without one are flagged stale. Each change is noted in `notes`."""
+    taken: set[int] = set()
+    for it in items:
+        new = _nearest(points, np.asarray(getattr(it, position), dtype=np.float64), tol)
+        old = getattr(it, key)
+        if new is None or new in taken:
+            if not it.stale:
+                notes.append(f"{what} {old} flagged stale: its {key} no longer exists")
+            it.stale = True
+            continue
+        taken.add(new)
+        if new != old or it.stale:
+            notes.append(f"{what} {old} remapped to {key} {new}" + (" (was stale)" if mention_stale and it.stale
+                                                                     else ""))
+        setattr(it, key, new)
+        it.stale = False
+
+
 def remap_design(obj, arrays: MeshArrays) -> list[str]:
     """Bring the stored design of `obj` in line with its current mesh (see the module docstring).
 
@@ -354,34 +373,10 @@ def remap_design(obj, arrays: MeshArrays) -> list[str]:
 
     diag = float(np.linalg.norm(np.ptp(arrays.vertices, axis=0))) if arrays.vertices.shape[0] else 0.0
     tol = REMAP_TOLERANCE * max(diag, 1e-12)
-    taken: set[int] = set()
-    for c in st.constraints:
-        old = np.asarray(c.centroid, dtype=np.float64)
-        face = _nearest(arrays.polygon_centers, old, tol)
-        if face is None or face in taken:
-            if not c.stale:
-                notes.append(f"constraint on face {c.face} flagged stale: its face no longer exists")
-            c.stale = True
-            continue
-        taken.add(face)
-        if face != c.face or c.stale:
-            notes.append(f"constraint on face {c.face} remapped to face {face}"
-                         + (" (was stale)" if c.stale else ""))
-        c.face = face
-        c.stale = False
-    taken_v: set[int] = set()
-    for s in st.singularities:
-        v = _nearest(arrays.vertices, np.asarray(s.position, dtype=np.float64), tol)
-        if v is None or v in taken_v:
-            if not s.stale:
-                notes.append(f"singularity at vertex {s.vertex} flagged stale: its vertex no longer exists")
-            s.stale = True
-            continue
-        taken_v.add(v)
-        if v != s.vertex or s.stale:
-            notes.append(f"singularity at vertex {s.vertex} remapped to vertex {v}")
-        s.vertex = v
-        s.stale = False
+    _remap_items(st.constraints, "face", "centroid", arrays.polygon_centers, "constraint on face", tol, notes,
+                 mention_stale=True)
+    _remap_items(st.singularities, "vertex", "position", arrays.vertices, "singularity at vertex", tol, notes,
+                 mention_stale=False)
     for layer in st.layers:
         if not layer.stale:
             layer.stale = True

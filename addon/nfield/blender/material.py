@@ -14,10 +14,11 @@ raises NFieldError naming the node, the Blender version and the sockets the node
 BSDF is isotropic (no Tangent): it is skipped; its Anisotropic BSDF and the Principled BSDF are driven.
 
 Which attribute: the face attribute (default) is one of the n directions per polygon and is constant over a
-polygon; the tangent's sign does not matter to anisotropic reflection, so for n = 2 it is exact. The point
-attribute (smoothed) interpolates across triangles; where neighbouring vertices report opposite signs (or, for
-n = 4, different directions) the interpolated tangent turns, so it is smoother on fine meshes but can show
-seams. For n = 4 (and 3, 6) each polygon reports *one* of its n directions without a global choice, so the
+polygon; the tangent's sign does not matter to anisotropic reflection, so for n = 2 it is exact, but where the
+field turns quickly from face to face the reflection shows the facets. The point attribute (smoothed)
+interpolates across triangles, so the reflection is smooth; its directions are combed (each vertex reports the
+one of its n directions that agrees with its neighbours), and where neighbours still disagree -- along a few
+paths from singularities of fractional index -- the interpolated tangent turns through zero: a thin seam. For n = 4 (and 3, 6) each polygon reports *one* of its n directions without a global choice, so the
 highlight follows the field direction on some polygons and its perpendicular on others: use n = 2 for shading.
 
 Only Cycles renders anisotropy; EEVEE ignores the Tangent/anisotropy inputs (the panel says so).
@@ -31,19 +32,12 @@ import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 
 from . import api
+from .choices import SHADING_DIRECTION_ITEMS, SHADING_SOURCE_ITEMS
 from .errors import NFieldError
 from .operator_base import NFieldObjectOperator
 
 __all__ = ["build", "find_socket", "ensure_nodes", "NFIELD_OT_material_anisotropic", "register", "unregister"]
 
-SOURCE_ITEMS = [
-    ("FACE", "Face Direction", "The face attribute (one direction per polygon; exact for n = 2)"),
-    ("POINT", "Smoothed Point Direction", "The smoothed point attribute (interpolated; smoother, may show seams)"),
-]
-DIRECTION_ITEMS = [
-    ("FIELD", "Field Direction", "Highlight stretched across the field: the tangent follows the field direction"),
-    ("PERPENDICULAR", "Perpendicular", "The tangent is cross(normal, field direction) (for n = 2 and 4)"),
-]
 
 #: BSDF nodes with a Tangent input: bl_idname -> identifiers of the anisotropy socket (first found wins)
 ANISOTROPIC_BSDFS = {
@@ -276,8 +270,8 @@ class NFIELD_OT_material_anisotropic(NFieldObjectOperator, bpy.types.Operator):
 
     anisotropy: FloatProperty(name="Anisotropy", default=0.8, min=0.0, max=1.0, subtype="FACTOR",
                               description="Amount of anisotropy (0 = isotropic); Cycles only")
-    direction: EnumProperty(name="Direction", items=DIRECTION_ITEMS, default="FIELD")
-    source: EnumProperty(name="Attribute", items=SOURCE_ITEMS, default="FACE")
+    direction: EnumProperty(name="Direction", items=SHADING_DIRECTION_ITEMS, default="FIELD")
+    source: EnumProperty(name="Attribute", items=SHADING_SOURCE_ITEMS, default="FACE")
     material: StringProperty(name="Material", default="",
                              description="Existing material to update (empty: the object's nfield material, "
                                          "created if needed)")

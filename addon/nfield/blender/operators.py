@@ -25,6 +25,19 @@ def _active_item(items, active_index: int, what: str):
     return items[min(active_index, len(items) - 1)]
 
 
+def _remove_given_or_active(op, context, value: int, items: str, active: str, key: str, what: str, remove):
+    """Run `remove(obj, value)`, or with the `key` (face / vertex) of the list's active item when `value` is
+    negative, re-solving after it (the remove operators)."""
+    def fn(obj):
+        v = value
+        if v < 0:
+            st = obj.nfield
+            v = getattr(_active_item(getattr(st, items), getattr(st, active), what), key)
+        remove(obj, v)
+
+    return op.run(context, fn, solve_after=True)
+
+
 class NFIELD_OT_solve(NFieldObjectOperator, bpy.types.Operator):
     """Solve the n-direction field of the active object with its settings and constraints"""
 
@@ -91,14 +104,8 @@ class NFIELD_OT_constraint_remove(NFieldObjectOperator, bpy.types.Operator):
     face: IntProperty(name="Face", default=-1, min=-1, description="Polygon index (-1: the active constraint)")
 
     def execute(self, context):
-        def fn(obj):
-            face = self.face
-            if face < 0:
-                st = obj.nfield
-                face = _active_item(st.constraints, st.active_constraint_index, "constraints").face
-            api.remove_constraint(obj, face)
-
-        return self.run(context, fn, solve_after=True)
+        return _remove_given_or_active(self, context, self.face, "constraints", "active_constraint_index", "face",
+                                       "constraints", api.remove_constraint)
 
 
 class NFIELD_OT_constraint_clear(NFieldObjectOperator, bpy.types.Operator):
@@ -146,14 +153,8 @@ class NFIELD_OT_singularity_remove(NFieldObjectOperator, bpy.types.Operator):
     vertex: IntProperty(name="Vertex", default=-1, min=-1)
 
     def execute(self, context):
-        def fn(obj):
-            v = self.vertex
-            if v < 0:
-                st = obj.nfield
-                v = _active_item(st.singularities, st.active_singularity_index, "prescribed singularities").vertex
-            api.remove_singularity(obj, v)
-
-        return self.run(context, fn, solve_after=True)
+        return _remove_given_or_active(self, context, self.vertex, "singularities", "active_singularity_index",
+                                       "vertex", "prescribed singularities", api.remove_singularity)
 
 
 class NFIELD_OT_region_begin(NFieldObjectOperator, bpy.types.Operator):

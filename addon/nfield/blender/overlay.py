@@ -2,13 +2,16 @@
 
 What is drawn, per mesh object with an nfield design (``obj.nfield``):
 
-* **glyphs**: the n directions of the field on an evenly spread subset of faces, as short line segments
-  through the face centroids (even n: n/2 segments centred on the centroid, one per pair of opposite
-  directions; odd n: n half-segments starting at the centroid). Half-length = 0.4 x the local glyph spacing
-  (the face's mean edge length, or the sample spacing when the mesh is subsampled) x ``glyph_scale``;
+* **glyphs**: the n directions of the field on a subset of faces spread evenly *on screen* (about
+  ``GLYPH_SPACING_PX`` / sqrt(``glyph_density``) pixels apart, at most ``GLYPH_CAP``; see
+  ``glyphs.sample_on_screen``), as short line segments through the face centroids (even n: n/2 segments
+  centred on the centroid, one per pair of opposite directions; odd n: n half-segments starting at the
+  centroid, with arrowheads). Half-length = 0.4 x the local glyph spacing (the face's mean edge length, or
+  the sample's cell size where that is larger) x ``glyph_scale``. Zooming in shows more glyphs, closer
+  together on the surface; zooming out fewer;
 * **constraint arrows**: thicker, orange, from the face centroid along the constraint direction, with a head;
   at least ``MIN_ARROW_PX`` pixels long on screen (object-space length stretched up to ``MAX_ARROW_STRETCH``
-  times; rebuilt in a timer when the view changes, see :func:`constraint_arrows` for picking them);
+  times; see :func:`constraint_arrows` for picking them);
 * **singularity markers**: points at the singular vertices, red for positive and blue for negative index;
   singularities pinned by the user are drawn larger with a white rim;
 
@@ -23,14 +26,19 @@ binds a shader and draws prebuilt ``GPUBatch`` objects. Each object has a versio
 :func:`tag_changed`); the draw callback compares it with the version the batches were built from and only
 *schedules* a rebuild when they differ.
 
+The glyphs and the arrows depend on the view, so each 3D view region (keyed by its pointer; a quad view has
+four) has batches of its own. The draw callback records the region's view (size, perspective, the object's
+transform) and, when it differs from the one the region's batches were built for, schedules their rebuild
+in a timer ``VIEW_DELAY`` seconds later: while the user orbits or zooms, at most one rebuild per delay, for
+the latest view, and the previous batches are drawn meanwhile.
+
 Geometry (centroids, normals, edge lengths, vertex normals) comes from ``mesh_read.overlay_geometry``,
 keyed by the mesh signature like everything else that reads the mesh.
 
-Subsampling: at most ``GLYPH_BUDGET`` x ``glyph_density`` glyphs (budget 20 000). When the mesh has more faces,
-a deterministic spatial hash picks one face per grid cell (the face whose centroid is closest to the cell's
-centre; cell size from the surface area, adjusted so the count is close to the target). The sample only
-depends on the mesh geometry and the density, so it is cached and reused by every later solve: a live
-re-solve only gathers the directions of the sampled faces and re-uploads one vertex buffer.
+Subsampling: a deterministic spatial hash picks one face per grid cell, the cells sized from the view. The
+sample depends on the mesh geometry, the density, which faces have a field and the view, so it is cached per
+region and reused by every later solve: a live re-solve only gathers the directions of the sampled faces and
+re-uploads one vertex buffer.
 """
 from __future__ import annotations
 
@@ -44,13 +52,19 @@ import numpy as np
 from gpu_extras.batch import batch_for_shader
 
 from . import mesh_read, session_cache
-from .glyphs import constraint_arrow_segments, glyph_segments, sample_faces, screen_min_length
+from .glyphs import (
+    constraint_arrow_segments, glyph_segments, pixels_per_unit, sample_on_screen, screen_min_length,
+)
 
-__all__ = ["GLYPH_BUDGET", "register", "unregister", "refresh", "tag_changed", "forget", "results_reset",
-           "last_build_stats"]
+__all__ = ["GLYPH_CAP", "GLYPH_SPACING_PX", "register", "unregister", "refresh", "tag_changed", "forget",
+           "results_reset", "last_build_stats", "view_stats", "constraint_arrows"]
 
-#: the most glyphs drawn on one object (glyph_density scales it)
-GLYPH_BUDGET = 20000
+#: the most glyphs drawn on one object in one view
+GLYPH_CAP = 20000
+#: glyph spacing on screen at glyph_density 1 (pixels); density d spaces them GLYPH_SPACING_PX / sqrt(d)
+GLYPH_SPACING_PX = 12.0
+#: seconds between a view change and the rebuild of the view's glyphs and arrows (coalesces navigation)
+VIEW_DELAY = 0.1
 
 COLOR_GLYPH = (0.05, 0.05, 0.05, 0.9)
 COLOR_GLYPH_ON_DARK = (0.95, 0.95, 0.95, 0.9)
@@ -72,23 +86,38 @@ POINT_PINNED = 16.0
 
 # ================================================================================= per-object batches
 @dataclass
+class _View:
+    """One 3D view region's batches of one object: they depend on the view."""
+    key: tuple  # region size, perspective matrix and object transform (rounded) the view was recorded with
+    size: tuple  # (width, height) pixels
+    mvp: np.ndarray  # object space -> clip space
+    built: Any = None  # (key, state.built) the batches were made for
+    batches: dict = field(default_factory=dict)  # "glyphs", "constraints"
+    arrows: dict = field(default_factory=dict)  # face -> (tail, tip) object space, as drawn
+    sample: Any = None  # (sample key, faces, cell sizes)
+    stats: dict = field(default_factory=dict)
+    used: float = 0.0  # time of the last draw (the least recently drawn region is dropped first)
+
+
+@dataclass
 class _State:
     version: int = 0
     built: Any = None  # (version, settings key) the batches were built from
-    batches: dict = field(default_factory=dict)  # name -> GPUBatch
+    batches: dict = field(default_factory=dict)  # name -> GPUBatch (the view-independent ones)
     result: Any = None  # last FieldResult handed over by refresh()/tag_changed()
-    samples: dict = field(default_factory=dict)  # (mesh signature, target, faces with a field) -> glyph faces
     stats: dict = field(default_factory=dict)
-    spacing: float = 0.0  # glyph sample spacing of the last build (arrow lengths follow it)
-    view: Any = None  # (key, width, height, perspective matrix) of the view the arrows were last sized for
-    arrows: dict = field(default_factory=dict)  # face -> (tail, tip) object space, as drawn
-    geo: Any = None  # the overlay geometry of the last full build (arrow resizing reuses it: no mesh read)
+    geo: Any = None  # the overlay geometry of the last full build (view rebuilds reuse it: no mesh read)
+    directions: Any = None  # (P, n, 3) field directions of the last full build, None without a field
+    views: dict = field(default_factory=dict)  # region pointer -> _View
 
+
+#: regions remembered per object (a quad view has four; closed areas leave stale entries behind)
+MAX_VIEWS = 8
 
 _states: dict[str, _State] = {}
 _handle = None
 _pending: set[str] = set()
-_pending_arrows: set[str] = set()
+_pending_views: set[tuple[str, int]] = set()
 _shaders: dict[str, Any] = {}
 _last_stats: dict = {}
 
@@ -175,48 +204,32 @@ def _singularities_for(obj, state: _State) -> list[tuple[int, float]]:
 
 
 def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
-    """(Re)build every batch of ``obj`` from the current field and design. Not called from draw.
-    `arrays`: the mesh read the caller just made (see refresh), else the mesh is read here."""
+    """(Re)build every batch of ``obj`` from the current field and design: the view-independent ones and those
+    of every view region it was drawn in. Not called from draw. `arrays`: the mesh read the caller just made
+    (see refresh), else the mesh is read here."""
     state = _states.setdefault(obj.name, _State())
     t0 = time.perf_counter()
     s = obj.nfield
-    n = s.n
     geo = mesh_read.overlay_geometry(obj, arrays)
     t_geo = time.perf_counter()
-    num_polys = len(geo.centroids)
-    fld = _field_for(obj, state, geo, n)
+    fld = _field_for(obj, state, geo, s.n) if len(geo.centroids) else None
     t_field = time.perf_counter()
+    state.geo, state.directions = geo, fld
+    state.batches = _singularity_batches(obj, state, geo)
+    state.built = _built_key(obj, state)
+    for view in list(state.views.values()):
+        _build_view(obj, state, view)
+    t_end = time.perf_counter()
+    state.stats = {"faces": len(geo.centroids), "geometry_s": t_geo - t0, "field_s": t_field - t_geo,
+                   "total_s": t_end - t0}
+    _last_stats.clear()
+    _last_stats.update(state.stats, object=obj.name)
 
-    target = max(1, int(round(GLYPH_BUDGET * float(s.glyph_density))))
-    batches: dict[str, Any] = {}
-    line = _shader("line")
+
+def _singularity_batches(obj, state: _State, geo) -> dict:
+    """The singularity markers (they do not depend on the view)."""
     point = _shader("point")
-    n_glyphs = 0
-    if fld is not None and num_polys:
-        valid = np.any(fld[:, 0, :] != 0.0, axis=1)
-        skey = (geo.signature, target, int(valid.sum()))
-        if skey not in state.samples:
-            state.samples = {skey: sample_faces(geo.centroids, geo.areas, target, valid)}
-        faces, spacing = state.samples[skey]
-        t_sample = time.perf_counter()
-        local = np.maximum(geo.edge_len[faces], 0.8 * spacing)
-        half = 0.4 * local * float(s.glyph_scale)
-        lift = 0.02 * local
-        verts = glyph_segments(geo.centroids[faces], geo.normals[faces], half, fld[faces], lift)
-        n_glyphs = len(faces)
-        if len(verts):
-            batches["glyphs"] = batch_for_shader(line[0], "LINES", {"pos": verts})
-    else:
-        t_sample = time.perf_counter()
-        spacing = 0.0
-    t_glyph = time.perf_counter()
-
-    # constraint arrows (from the stored design: always the user's latest edit, even mid-drag)
-    state.spacing = spacing
-    state.geo = geo
-    batches.update(_arrow_batches(obj, state, geo))
-
-    # singularity markers
+    batches = {}
     sings = _singularities_for(obj, state)
     nv = len(geo.positions)
     scale = float(np.median(geo.edge_len)) if len(geo.edge_len) else 0.0
@@ -226,6 +239,7 @@ def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
             vi = np.array(vs, dtype=np.int64)
             p = geo.positions[vi] + geo.vnormals[vi] * (0.05 * scale)
             batches[name] = batch_for_shader(point[0], "POINTS", {"pos": np.ascontiguousarray(p, np.float32)})
+    s = obj.nfield
     pin_list = [sg.vertex for sg in s.singularities if not sg.stale and sg.vertex < nv]
     if pin_list:
         vi = np.array(pin_list, dtype=np.int64)
@@ -237,25 +251,52 @@ def _build(obj, arrays: mesh_read.MeshArrays | None = None) -> None:
             sel = [k for k, v in enumerate(pin_list) if (sign[v] > 0) == pos]
             if sel:
                 batches[name] = batch_for_shader(point[0], "POINTS", {"pos": p[sel]})
-
-    t_end = time.perf_counter()
-    state.batches = batches
-    state.built = _built_key(obj, state)
-    state.stats = {
-        "faces": num_polys, "glyphs": n_glyphs, "spacing": spacing,
-        "geometry_s": t_geo - t0, "field_s": t_field - t_geo, "sample_s": t_sample - t_field,
-        "glyph_batch_s": t_glyph - t_sample, "total_s": t_end - t0,
-    }
-    _last_stats.clear()
-    _last_stats.update(state.stats)
-    _last_stats["object"] = obj.name
+    return batches
 
 
-def _arrow_batches(obj, state: _State, geo) -> dict:
-    """The constraint arrows' batch (and state.arrows) for the view state.view was last drawn with."""
+def _glyph_spacing_px(obj) -> float:
+    return GLYPH_SPACING_PX / np.sqrt(max(float(obj.nfield.glyph_density), 1e-4))
+
+
+def _build_view(obj, state: _State, view: _View) -> None:
+    """The glyphs and constraint arrows of ``obj`` for one view region (from state.geo / state.directions)."""
+    t0 = time.perf_counter()
+    geo, fld = state.geo, state.directions
+    batches: dict[str, Any] = {}
+    n_glyphs = 0
+    if geo is not None and fld is not None:
+        valid = np.any(fld[:, 0, :] != 0.0, axis=1)
+        spacing_px = _glyph_spacing_px(obj)
+        skey = (view.key, geo.signature, round(spacing_px, 4), int(valid.sum()))
+        if view.sample is None or view.sample[0] != skey:
+            view.sample = (skey, *sample_on_screen(geo.centroids, geo.normals, view.mvp, view.size, spacing_px,
+                                                   GLYPH_CAP, valid))
+        _key, faces, cells = view.sample
+        t_sample = time.perf_counter()
+        local = np.maximum(geo.edge_len[faces], 0.8 * cells)
+        half = 0.4 * local * float(obj.nfield.glyph_scale)
+        verts = glyph_segments(geo.centroids[faces], geo.normals[faces], half, fld[faces], 0.02 * local)
+        n_glyphs = len(faces)
+        if len(verts):
+            batches["glyphs"] = batch_for_shader(_shader("line")[0], "LINES", {"pos": verts})
+        view.stats = {"glyphs": n_glyphs, "spacing_px": spacing_px,
+                      "median_cell": float(np.median(cells)) if len(cells) else 0.0,
+                      "sample_s": t_sample - t0}
+    else:
+        view.stats = {"glyphs": 0}
+    if geo is not None:
+        batches.update(_arrow_batches(obj, view, geo))
+    view.batches = batches
+    view.built = (view.key, state.built)
+    view.stats["total_s"] = time.perf_counter() - t0
+    _last_stats.update(glyphs=n_glyphs, view_s=view.stats["total_s"])
+
+
+def _arrow_batches(obj, view: _View, geo) -> dict:
+    """The constraint arrows' batch (and view.arrows) for one view: at least MIN_ARROW_PX long on screen."""
     s = obj.nfield
     num_polys = len(geo.centroids)
-    state.arrows = {}
+    view.arrows = {}
     cons = [(c.face, tuple(c.direction)) for c in s.constraints if not c.stale and c.face < num_polys]
     if not cons:
         return {}
@@ -265,27 +306,42 @@ def _arrow_batches(obj, state: _State, geo) -> dict:
     d = d - nrm * np.sum(d * nrm, axis=1, keepdims=True)
     ok = np.linalg.norm(d, axis=1) > 0
     d[ok] /= np.linalg.norm(d[ok], axis=1, keepdims=True)
-    local = np.maximum(geo.edge_len[faces_c], 0.8 * state.spacing)
+    speed = pixels_per_unit(geo.centroids[faces_c], view.mvp, view.size)
+    cell = np.where(speed > 0, _glyph_spacing_px(obj) / np.maximum(speed, 1e-30), 0.0)
+    local = np.maximum(geo.edge_len[faces_c], 0.8 * cell)  # as long as the glyphs around it, at least
     org = geo.centroids[faces_c] + nrm * (0.04 * local)[:, None]
-    length = 1.6 * local * float(s.glyph_scale)
-    if state.view is not None:
-        _key, width, height, persp = state.view
-        mvp = np.asarray(persp, dtype=np.float64) @ np.array(obj.matrix_world, dtype=np.float64)
-        length = screen_min_length(org, d, length, mvp, (width, height), MIN_ARROW_PX, MAX_ARROW_STRETCH)
-    state.arrows = {int(f): (org[i].copy(), org[i] + d[i] * length[i]) for i, f in enumerate(faces_c) if ok[i]}
+    length = screen_min_length(org, d, 1.6 * local * float(s.glyph_scale), view.mvp, view.size, MIN_ARROW_PX,
+                               MAX_ARROW_STRETCH)
+    view.arrows = {int(f): (org[i].copy(), org[i] + d[i] * length[i]) for i, f in enumerate(faces_c) if ok[i]}
     verts = constraint_arrow_segments(org[ok], nrm[ok], d[ok], length[ok])
     return {"constraints": batch_for_shader(_shader("line")[0], "LINES", {"pos": verts})} if len(verts) else {}
 
 
-def constraint_arrows(obj) -> dict:
-    """face -> (tail, tip) in object space of the constraint arrows as last drawn (for picking)."""
+def constraint_arrows(obj, region=None) -> dict:
+    """face -> (tail, tip) in object space of the constraint arrows as drawn in `region` (for picking; None or
+    a region not drawn yet: the region drawn last)."""
     state = _states.get(getattr(obj, "name", ""))
-    return {} if state is None else dict(state.arrows)
+    if state is None or not state.views:
+        return {}
+    view = state.views.get(region.as_pointer()) if region is not None else None
+    if view is None:
+        view = max(state.views.values(), key=lambda v: v.used)
+    return dict(view.arrows)
 
 
-def _view_key(region, rv3d) -> tuple:
+def view_stats(obj) -> list[dict]:
+    """Per view region the object was drawn in: glyph count, spacing on screen (pixels), median cell size
+    (object units), build seconds; the most recently drawn first (for tests and benchmarks)."""
+    state = _states.get(getattr(obj, "name", ""))
+    views = [] if state is None else sorted(state.views.values(), key=lambda v: -v.used)
+    return [dict(v.stats, size=v.size) for v in views]
+
+
+def _view_key(region, rv3d, obj) -> tuple:
     m = rv3d.perspective_matrix
-    return (region.width, region.height, tuple(round(m[i][j], 6) for i in range(4) for j in range(4)))
+    w = obj.matrix_world
+    return (region.width, region.height, tuple(round(m[i][j], 6) for i in range(4) for j in range(4)),
+            tuple(round(w[i][j], 6) for i in range(3) for j in range(4)))
 
 
 def _can_draw() -> bool:
@@ -348,25 +404,16 @@ def _schedule(name: str) -> None:
         bpy.app.timers.register(_rebuild_pending, first_interval=0.0)
 
 
-def _schedule_arrows(name: str) -> None:
-    _pending_arrows.add(name)
-    if not bpy.app.timers.is_registered(_rebuild_pending):
-        bpy.app.timers.register(_rebuild_pending, first_interval=0.0)
+def _schedule_view(name: str, region_ptr: int) -> None:
+    """Rebuild one region's view batches of object `name` in VIEW_DELAY seconds (coalesced)."""
+    _pending_views.add((name, region_ptr))
+    if not bpy.app.timers.is_registered(_rebuild_views):
+        bpy.app.timers.register(_rebuild_views, first_interval=VIEW_DELAY)
 
 
 def _rebuild_pending():
     names = list(_pending)
     _pending.clear()
-    for name in [a for a in _pending_arrows if a not in names]:
-        obj = bpy.data.objects.get(name)
-        state = _states.get(name)
-        if obj is not None and state is not None and state.geo is not None:
-            try:
-                state.batches.pop("constraints", None)
-                state.batches.update(_arrow_batches(obj, state, state.geo))
-            except Exception as exc:  # noqa: BLE001 - never break the UI
-                print(f"nfield overlay: cannot size the arrows of {name!r}: {exc}")
-    _pending_arrows.clear()
     for name in names:
         obj = bpy.data.objects.get(name)
         if obj is not None and obj.type == "MESH" and hasattr(obj, "nfield"):
@@ -374,9 +421,32 @@ def _rebuild_pending():
                 _build(obj)
             except Exception as exc:  # noqa: BLE001 - never break the UI; report in the console
                 print(f"nfield overlay: cannot build overlay for {name!r}: {exc}")
-                _states.setdefault(name, _State()).built = None
-                _states[name].batches = {}
-                _states[name].built = _built_key(obj, _states[name])
+                state = _states.setdefault(name, _State())
+                state.batches, state.directions = {}, None
+                for view in state.views.values():
+                    view.batches = {}
+                state.built = _built_key(obj, state)
+    _tag_redraw()
+    return None
+
+
+def _rebuild_views():
+    """The views some regions were drawn with changed: rebuild those regions' glyphs and arrows (for the
+    view each region was last drawn with)."""
+    pending = list(_pending_views)
+    _pending_views.clear()
+    for name, ptr in pending:
+        obj = bpy.data.objects.get(name)
+        state = _states.get(name)
+        view = None if state is None else state.views.get(ptr)
+        if obj is None or view is None or state.geo is None or view.built == (view.key, state.built):
+            continue
+        try:
+            _build_view(obj, state, view)
+        except Exception as exc:  # noqa: BLE001 - never break the UI
+            print(f"nfield overlay: cannot build the view of {name!r}: {exc}")
+            view.batches = {}
+            view.built = (view.key, state.built)
     _tag_redraw()
     return None
 
@@ -442,25 +512,20 @@ def _draw_callback():
             s = obj.nfield
             if state.built != _built_key(obj, state):
                 _schedule(obj.name)  # keep drawing the previous batches meanwhile
-            if len(s.constraints):
-                view = _view_key(region, context.region_data)
-                if state.view is None or state.view[0] != view:
-                    # the arrows keep a minimum size on screen: resize them for this view (in a timer)
-                    state.view = (view, region.width, region.height,
-                                  [list(row) for row in context.region_data.perspective_matrix])
-                    _schedule_arrows(obj.name)
+            view = _region_view(obj, state, region, context.region_data)
             b = state.batches
-            if not b:
+            vb = {} if view is None else view.batches
+            if not b and not vb:
                 continue
             gpu.matrix.push()
             gpu.matrix.multiply_matrix(obj.matrix_world)
             try:
-                if s.show_field and "glyphs" in b:
+                if s.show_field and "glyphs" in vb:
                     dark = _dark_background(context)
-                    _draw_lines(b["glyphs"], line, COLOR_GLYPH_ON_DARK if dark else COLOR_GLYPH, WIDTH_GLYPH,
+                    _draw_lines(vb["glyphs"], line, COLOR_GLYPH_ON_DARK if dark else COLOR_GLYPH, WIDTH_GLYPH,
                                 region)
-                if s.show_constraints and "constraints" in b:
-                    _draw_lines(b["constraints"], line, COLOR_CONSTRAINT, WIDTH_CONSTRAINT, region)
+                if s.show_constraints and "constraints" in vb:
+                    _draw_lines(vb["constraints"], line, COLOR_CONSTRAINT, WIDTH_CONSTRAINT, region)
                 if s.show_singularities:
                     if "pinned_rim" in b:
                         _draw_points(b["pinned_rim"], point, COLOR_RIM, POINT_PINNED + 4)
@@ -477,6 +542,29 @@ def _draw_callback():
         gpu.state.blend_set("NONE")
         gpu.state.line_width_set(1.0)
         gpu.state.point_size_set(1.0)
+
+
+def _region_view(obj, state: _State, region, rv3d) -> _View | None:
+    """The region's view record for `obj` (cheap: compares the rounded matrices). When the view changed since
+    its batches were built, records the new one and schedules their rebuild (in a timer, never here)."""
+    if rv3d is None:
+        return None
+    ptr = region.as_pointer()
+    key = _view_key(region, rv3d, obj)
+    view = state.views.get(ptr)
+    if view is None or view.key != key:
+        mvp = np.asarray(rv3d.perspective_matrix, dtype=np.float64) @ np.asarray(obj.matrix_world, dtype=np.float64)
+        if view is None:
+            view = _View(key=key, size=(region.width, region.height), mvp=mvp)
+            state.views[ptr] = view
+            if len(state.views) > MAX_VIEWS:
+                oldest = min(state.views, key=lambda p: state.views[p].used)
+                state.views.pop(oldest)
+        else:
+            view.key, view.size, view.mvp = key, (region.width, region.height), mvp
+        _schedule_view(obj.name, ptr)
+    view.used = time.perf_counter()
+    return view
 
 
 def _dark_background(context) -> bool:
@@ -498,9 +586,10 @@ def unregister():
     if _handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
         _handle = None
-    if bpy.app.timers.is_registered(_rebuild_pending):
-        bpy.app.timers.unregister(_rebuild_pending)
+    for fn in (_rebuild_pending, _rebuild_views):
+        if bpy.app.timers.is_registered(fn):
+            bpy.app.timers.unregister(fn)
     _states.clear()
     _shaders.clear()
     _pending.clear()
-    _pending_arrows.clear()
+    _pending_views.clear()

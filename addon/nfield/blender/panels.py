@@ -121,11 +121,14 @@ class NFIELD_UL_layers(bpy.types.UIList):
         row.label(text=f"{len(item.faces)} faces")
 
 
-def _list_with_side(layout, list_id: str, st, items: str, active: str, rows: int):
-    """A UIList of st.<items> with a side column (returned) for its buttons."""
+def _list_with_side(layout, list_id: str, st, items: str, active: str, rows: int, remove: str):
+    """A UIList of st.<items> with a side column (returned) for its buttons, the first of them the operator
+    `remove` (removes the active item)."""
     row = layout.row()
     row.template_list(list_id, "", st, items, st, active, rows=rows)
-    return row.column(align=True)
+    side = row.column(align=True)
+    side.operator(remove, icon="REMOVE", text="")
+    return side
 
 
 # ------------------------------------------------------------------------------------------------ panels
@@ -145,11 +148,15 @@ class NFieldSubpanel(_NFieldPanel):
     bl_parent_id = "NFIELD_PT_main"
 
 
-class NFieldMeshSubpanel(NFieldSubpanel):
-    """Base of the subpanels that register themselves (guides, quad remesh): closed at first, shown for any
-    active mesh object (they draw their own message when the compiled solver cannot be loaded)."""
+class NFieldClosedSubpanel(NFieldSubpanel):
+    """A subpanel of the nfield tab that starts closed (what is not needed at every step)."""
 
     bl_options = {"DEFAULT_CLOSED"}
+
+
+class NFieldMeshSubpanel(NFieldClosedSubpanel):
+    """Base of the subpanels that register themselves (guides, quad remesh): closed at first, shown for any
+    active mesh object (they draw their own message when the compiled solver cannot be loaded)."""
 
     @classmethod
     def poll(cls, context):
@@ -262,8 +269,8 @@ class NFIELD_PT_constraints(NFieldSubpanel, bpy.types.Panel):
     def draw(self, context):
         st = _mesh_object(context).nfield
         layout = self.layout
-        side = _list_with_side(layout, "NFIELD_UL_constraints", st, "constraints", "active_constraint_index", 3)
-        side.operator("nfield.constraint_remove", icon="REMOVE", text="")
+        side = _list_with_side(layout, "NFIELD_UL_constraints", st, "constraints", "active_constraint_index", 3,
+                               "nfield.constraint_remove")
         side.separator()
         side.operator("nfield.constraint_clear", icon="X", text="").stale_only = False
         if any(c.stale for c in st.constraints):
@@ -276,15 +283,13 @@ class NFIELD_PT_singularities(NFieldSubpanel, bpy.types.Panel):
 
     def draw(self, context):
         st = _mesh_object(context).nfield
-        side = _list_with_side(self.layout, "NFIELD_UL_singularities", st, "singularities",
-                               "active_singularity_index", 2)
-        side.operator("nfield.singularity_remove", icon="REMOVE", text="")
+        _list_with_side(self.layout, "NFIELD_UL_singularities", st, "singularities", "active_singularity_index", 2,
+                        "nfield.singularity_remove")
 
 
-class NFIELD_PT_region(NFieldSubpanel, bpy.types.Panel):
+class NFIELD_PT_region(NFieldClosedSubpanel, bpy.types.Panel):
     bl_idname = "NFIELD_PT_region"
     bl_label = "Region"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         obj = _mesh_object(context)
@@ -300,14 +305,12 @@ class NFIELD_PT_region(NFieldSubpanel, bpy.types.Panel):
                 layout.label(text="Select faces in Edit Mode", icon="INFO")
             layout.operator("nfield.region_begin", text="Begin Region from Selection")
         if st.layers:
-            side = _list_with_side(layout, "NFIELD_UL_layers", st, "layers", "active_layer_index", 2)
-            side.operator("nfield.layer_release", icon="REMOVE", text="")
+            _list_with_side(layout, "NFIELD_UL_layers", st, "layers", "active_layer_index", 2, "nfield.layer_release")
 
 
-class NFIELD_PT_display(NFieldSubpanel, bpy.types.Panel):
+class NFIELD_PT_display(NFieldClosedSubpanel, bpy.types.Panel):
     bl_idname = "NFIELD_PT_display"
     bl_label = "Display"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         st = _mesh_object(context).nfield
@@ -321,10 +324,9 @@ class NFIELD_PT_display(NFieldSubpanel, bpy.types.Panel):
         col.prop(st, "show_singularities", text="Singularities")
 
 
-class NFIELD_PT_output(NFieldSubpanel, bpy.types.Panel):
+class NFIELD_PT_output(NFieldClosedSubpanel, bpy.types.Panel):
     bl_idname = "NFIELD_PT_output"
     bl_label = "Output"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         st = _mesh_object(context).nfield
@@ -336,10 +338,9 @@ class NFIELD_PT_output(NFieldSubpanel, bpy.types.Panel):
         self.layout.operator("nfield.write_attributes", icon="FILE_TICK")
 
 
-class NFIELD_PT_shading(NFieldSubpanel, bpy.types.Panel):
+class NFIELD_PT_shading(NFieldClosedSubpanel, bpy.types.Panel):
     bl_idname = "NFIELD_PT_shading"
     bl_label = "Shading"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = self.layout

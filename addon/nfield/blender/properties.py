@@ -140,7 +140,8 @@ class NFieldSettings(PropertyGroup):
     # --- display (read by the overlay)
     show_field: BoolProperty(name="Show Field", default=True, update=_update_display)
     glyph_density: FloatProperty(name="Glyph Density", default=0.5, min=0.01, max=1.0, subtype="FACTOR",
-                                 description="Fraction of the glyph budget to draw (evenly spread)",
+                                 description="Glyphs per screen area, spread evenly on screen (1: about 12 pixels apart; "
+                                             "zooming in shows more of them on the surface)",
                                  update=_update_display)
     glyph_scale: FloatProperty(name="Glyph Scale", default=1.0, min=0.05, soft_max=4.0, update=_update_display)
     show_constraints: BoolProperty(name="Show Constraints", default=True, update=_update_display)

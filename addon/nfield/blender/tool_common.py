@@ -97,7 +97,7 @@ def constraint_under_cursor(context, obj, mouse, hit, arrays: mesh_read.MeshArra
     if hit is not None and design.constraint_item(obj, hit[2]) is not None:
         return hit[2]
     items = [c for c in obj.nfield.constraints if not c.stale and c.face < arrays.num_polygons]
-    drawn = overlay.constraint_arrows(obj)
+    drawn = overlay.constraint_arrows(obj, context.region)
     best, best_d = None, float(PICK_PIXELS)
     m = Vector(mouse)
     for c in items:

@@ -26,34 +26,35 @@ SINGULARITY_HINT = ("Field Singularity: click near a vertex, then Wheel / +- / 1
                     "Minus flips sign, LMB/Enter to confirm, Esc/RMB to cancel | X/Del: remove pinned singularity")
 
 
-class NFIELD_TL_constraint(WorkSpaceTool):
+def _keymap(press_operator: str, delete_operator: str) -> tuple:
+    """LMB press starts the tool's modal operator; X and Del delete the item under the cursor."""
+    return ((press_operator, {"type": "LEFTMOUSE", "value": "PRESS"}, None),
+            (delete_operator, {"type": "X", "value": "PRESS"}, None),
+            (delete_operator, {"type": "DEL", "value": "PRESS"}, None))
+
+
+class _NFieldTool(WorkSpaceTool):
+    """What both toolbar entries share: the 3D view in object mode, no gizmo."""
+
     bl_space_type = "VIEW_3D"
     bl_context_mode = "OBJECT"
+    bl_widget = None
+
+
+class NFIELD_TL_constraint(_NFieldTool):
     bl_idname = "nfield.tool_constraint"
     bl_label = "Field Constraint"
     bl_description = CONSTRAINT_HINT
     bl_icon = "ops.gpencil.primitive_line"
-    bl_widget = None
-    bl_keymap = (
-        ("nfield.constraint_tool", {"type": "LEFTMOUSE", "value": "PRESS"}, None),
-        ("nfield.constraint_delete", {"type": "X", "value": "PRESS"}, None),
-        ("nfield.constraint_delete", {"type": "DEL", "value": "PRESS"}, None),
-    )
+    bl_keymap = _keymap("nfield.constraint_tool", "nfield.constraint_delete")
 
 
-class NFIELD_TL_singularity(WorkSpaceTool):
-    bl_space_type = "VIEW_3D"
-    bl_context_mode = "OBJECT"
+class NFIELD_TL_singularity(_NFieldTool):
     bl_idname = "nfield.tool_singularity"
     bl_label = "Field Singularity"
     bl_description = SINGULARITY_HINT
     bl_icon = "ops.transform.tosphere"
-    bl_widget = None
-    bl_keymap = (
-        ("nfield.singularity_tool", {"type": "LEFTMOUSE", "value": "PRESS"}, None),
-        ("nfield.singularity_delete", {"type": "X", "value": "PRESS"}, None),
-        ("nfield.singularity_delete", {"type": "DEL", "value": "PRESS"}, None),
-    )
+    bl_keymap = _keymap("nfield.singularity_tool", "nfield.singularity_delete")
 
 
 class NFIELD_TL_comb(WorkSpaceTool):

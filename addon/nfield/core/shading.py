@@ -9,9 +9,12 @@ renderers and geometry nodes:
 * :func:`vertex_smoothed_directions` — an n-symmetry-aware average at each vertex: the incident faces'
   directions are rotated into the vertex tangent plane (minimal rotation from the face normal to the vertex
   normal), encoded as representation vectors exp(i n phi) in a vertex frame, averaged with area weights, and
-  decoded back to one unit direction (the first of the n). Averaging the representation vectors (rather than
-  the raw directions) is what makes the result independent of which of the n directions each face reports.
-  Vertices where the average vanishes (e.g. at singularities) get the zero vector.
+  decoded back to one unit direction. Averaging the representation vectors (rather than the raw directions)
+  is what makes the result independent of which of the n directions each face reports. Vertices where the
+  average vanishes (e.g. at singularities) get the zero vector. Which of its n directions a vertex reports
+  is then *combed*: chosen to agree with its neighbours, so that a renderer
+  interpolating the vector across a triangle (a tangent for anisotropic shading) sees no seam except where
+  the field's symmetry forces one (paths from singularities of fractional index).
 * :func:`vertex_singularity_index` — a dense per-vertex index array from a sparse list.
 """
 from __future__ import annotations
@@ -89,9 +92,64 @@ def vertex_smoothed_directions(vertices: np.ndarray, triangles: np.ndarray, tria
     mag = np.abs(z)
     ok = vok & (mag > 1e-9 * np.maximum(total, 1e-300))
     ang = np.angle(z) / n
+    ang[~ok] = np.nan
+    ang = _comb_angles(ang, t, e1, e2, n)
     out = np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2
     out[~ok] = 0.0
     return out
+
+
+def _vertex_neighbours(triangles: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR adjacency (offsets (nv + 1,), neighbours) of the vertex graph of `triangles`."""
+    a = triangles.ravel()
+    b = triangles[:, [1, 2, 0]].ravel()
+    key = np.unique(np.concatenate([a * nv + b, b * nv + a]))  # both directions of every edge, sorted by source
+    src, dst = key // nv, key % nv
+    offsets = np.zeros(nv + 1, dtype=np.int64)
+    np.add.at(offsets, src + 1, 1)
+    return np.cumsum(offsets), dst
+
+
+def _comb_angles(ang: np.ndarray, triangles: np.ndarray, e1: np.ndarray, e2: np.ndarray, n: int) -> np.ndarray:
+    """Per-vertex angles (in each vertex's frame e1, e2; NaN = no direction) shifted by multiples of 2 pi / n
+    so that each vertex agrees with the neighbour it is reached from, breadth first from the first vertex of
+    each connected part (one numpy step per ring of the search)."""
+    if n <= 1:
+        return ang
+    nv = len(ang)
+    offsets, nbr = _vertex_neighbours(np.asarray(triangles, dtype=np.int64), nv)
+    has = ~np.isnan(ang)
+    done = ~has
+    step = 2 * np.pi / n
+    out = ang.copy()
+    direction = np.zeros((nv, 3))
+    while not np.all(done):
+        root = int(np.flatnonzero(~done)[0])
+        done[root] = True
+        direction[root] = np.cos(out[root]) * e1[root] + np.sin(out[root]) * e2[root]
+        frontier = np.array([root])
+        while len(frontier):
+            counts = offsets[frontier + 1] - offsets[frontier]
+            src = np.repeat(frontier, counts)
+            dst = nbr[_ranges(offsets[frontier], counts)]
+            fresh = ~done[dst]
+            src, dst = src[fresh], dst[fresh]
+            dst, first = np.unique(dst, return_index=True)
+            src = src[first]
+            # the neighbour's direction in this vertex's frame: the nearest of the n angles to it
+            d = direction[src]
+            phi = np.arctan2(np.einsum("ij,ij->i", d, e2[dst]), np.einsum("ij,ij->i", d, e1[dst]))
+            out[dst] += step * np.round((phi - out[dst]) / step)
+            direction[dst] = np.cos(out[dst])[:, None] * e1[dst] + np.sin(out[dst])[:, None] * e2[dst]
+            done[dst] = True
+            frontier = dst
+    return out
+
+
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenation of arange(s, s + c) for each (s, c), without a Python loop."""
+    first = np.repeat(np.cumsum(counts) - counts, counts)
+    return np.repeat(starts, counts) + (np.arange(int(counts.sum())) - first)
 
 
 def vertex_singularity_index(num_vertices: int, singularities) -> np.ndarray:
