@@ -186,7 +186,7 @@ def addon_zip() -> Path:
 # Files that need PyPI bpy at import time: not even imported when the marker expression deselects
 # `blender` (the core legs then never load bpy, and under a Python without bpy nothing is skipped either).
 BLENDER_ONLY_FILES = {"test_blender_headless.py", "test_blender_design.py", "test_blender_failures.py",
-                      "test_blender_guides.py", "test_blender_mesh_read.py", "test_blender_artist.py",
+                      "test_blender_guides.py", "test_blender_guide_tools.py", "test_blender_mesh_read.py", "test_blender_artist.py",
                       "test_blender_remesh.py"}
 
 
