@@ -1,4 +1,4 @@
-// Feature edges (boundary, sharp, user-marked) and the guides they give a field (issue: feature alignment).
+// Feature edges (boundary, sharp, user-marked) and the guides they give a field.
 //
 // A feature edge is an edge the field should follow: its direction (and, for n = 4, its perpendicular,
 // which the cross contains anyway) at the faces next to it. detect_features() collects
