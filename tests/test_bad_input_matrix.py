@@ -20,7 +20,6 @@ holds the table of outcomes; ``test_docs_list_every_case`` keeps it complete.
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
@@ -33,9 +32,7 @@ import numpy as np
 import pytest
 
 import meshgen as mg
-
-ROOT = Path(__file__).resolve().parent.parent
-ADDON = ROOT / "addon"
+from conftest import ROOT, package_env
 #: a CLI run on these tiny meshes takes about a second (interpreter start, numpy, the compiled module);
 #: anything near this limit is a hang, not slowness (also under the shared machine's load)
 CLI_TIMEOUT = 60.0
@@ -545,8 +542,7 @@ def cli_args(case, tmp_path: Path):
 
 
 def run_cli(args):
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ADDON)
+    env = package_env()
     t0 = time.perf_counter()
     try:
         proc = subprocess.run([sys.executable, "-m", "nfield", *args], capture_output=True, text=True, env=env,
@@ -613,7 +609,7 @@ print("CLI exit", main(["solve", path, "--n", "4", "--order", "4"]))
 def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
     """A real std::bad_alloc (address space limited to 64 MB above what the process uses, in a subprocess):
     the core raises MemoryError, the CLI exits 2 with one line (not exit 1, not a traceback)."""
-    env = dict(os.environ, PYTHONPATH=str(ADDON), OPENBLAS_NUM_THREADS="1")
+    env = dict(package_env(), OPENBLAS_NUM_THREADS="1")
     proc = subprocess.run([sys.executable, "-c", _OOM_SCRIPT, str(Path(__file__).parent), str(tmp_path / "big.off")],
                           capture_output=True, text=True, env=env, timeout=CLI_TIMEOUT * 2)
     assert "CORE MemoryError" in proc.stdout, proc.stdout + proc.stderr

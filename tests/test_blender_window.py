@@ -1,9 +1,9 @@
 """A real Blender window: Debian's GUI Blender 3.4.1 under Xvfb, driven with xdotool.
 
-The packaged add-on (``python3 build_addon.py package`` -> dist/nfield-*.zip) is installed into a temporary
-user profile; tests/blender_scripts/window_session.py builds the scene (icosphere with rotation and
-non-uniform scale), maximizes the 3D view, activates the constraint tool and tells us where to click. We
-press on a face, drag, release (xdotool), and Blender reports back what it stored.
+The legacy add-on zip (``python3 build_addon.py package`` -> dist/nfield-*-blender34-legacy.zip) is
+installed into a temporary user profile; tests/blender_scripts/window_session.py builds the scene (icosphere
+with rotation and non-uniform scale), maximizes the 3D view, activates the constraint tool and tells us where
+to click. We press on a face, drag, release (xdotool), and Blender reports back what it stored.
 
 Checks:
 * exactly one constraint, on the clicked face, tangent to it;
@@ -157,7 +157,7 @@ def _check_undo(undo):
     assert "after undo" in undo["stale_text"], undo["stale_text"]
 
 
-def test_constraint_drag_in_real_window(tmp_path, addon_zip):
+def test_constraint_drag_in_real_window(tmp_path, legacy_zip):
     reason = _missing()
     if reason:
         print(f"SKIP: {reason}")
@@ -181,7 +181,7 @@ def test_constraint_drag_in_real_window(tmp_path, addon_zip):
         work.mkdir()
         blender = subprocess.Popen(
             [BLENDER, "--factory-startup", "-noaudio", "--window-geometry", "0", "0", "1280", "800",
-             "--python", str(SCRIPT), "--", str(work), str(addon_zip)],
+             "--python", str(SCRIPT), "--", str(work), str(legacy_zip)],
             env=env, stdout=log, stderr=subprocess.STDOUT)
         ready = _wait_file(work / "ready.json", blender, 180)
         if "error" in ready:

@@ -11,12 +11,12 @@
 * both operators (nfield.hatching, nfield.material_anisotropic) run from a script;
 * a tiny Cycles render shows the strokes (they darken a self-lit white sheet).
 
-Everything runs in a subprocess (this file as a script, PYTHONPATH=addon) so that it never shares a
-process with the packaged extension that tests/blender_support.py installs.
+Everything runs in a subprocess (this file as a script) with the nfield that Blender installed from the
+extension zip (the ``nf`` fixture of tests/blender_support.py) first on PYTHONPATH; the test process itself
+never imports bpy's scene state from it.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 import pytest
+from blender_support import nf  # noqa: F401  (fixture)
 
 pytestmark = pytest.mark.blender
 
@@ -224,12 +225,9 @@ def _run_checks(out_dir: Path) -> dict:
     return res
 
 
-def test_hatching_curves(tmp_path):
+def test_hatching_curves(tmp_path, nf):
 
-    if importlib.util.find_spec("bpy") is None:
-        pytest.skip("bpy (PyPI) is not installed")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT / "addon") + os.pathsep + env.get("PYTHONPATH", "")
+    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))  # the installed package
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), str(tmp_path)], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)

@@ -23,12 +23,11 @@ Measurements (mean absolute difference of linear RGB over all pixels):
   with the rotated constraint (the tangent is transformed from object to world space): below the noise floor
   (both measured bit-identical: Cycles' anisotropic GGX does not depend on the tangent's sign).
 
-The renders run in a subprocess (this file run as a script with PYTHONPATH=addon), so the test never shares a
-process with another copy of the add-on (tests/blender_support.py installs the packaged extension).
+The renders run in a subprocess (this file run as a script) with the nfield that Blender installed from the
+extension zip (the ``nf`` fixture of tests/blender_support.py) first on PYTHONPATH.
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -37,6 +36,7 @@ import time
 from pathlib import Path
 
 import pytest
+from blender_support import nf  # noqa: F401  (fixture)
 
 pytestmark = pytest.mark.blender
 
@@ -187,13 +187,10 @@ def _mad(a, b) -> float:
     return float(np.abs(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)).mean())
 
 
-def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path):
+def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path, nf):
     import numpy as np
 
-    if importlib.util.find_spec("bpy") is None:
-        pytest.skip("bpy (PyPI) is not installed")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT / "addon") + os.pathsep + env.get("PYTHONPATH", "")
+    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))  # the installed package
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), str(tmp_path)], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)
