@@ -45,9 +45,9 @@ def extension_site_packages() -> Path:
     return Path(USER_DIR, "extensions", ".local", "lib", "python%d.%d" % sys.version_info[:2], "site-packages")
 
 
-@pytest.fixture(scope="session")
-def nf(extension_zip):
-    """The package nfield that Blender installed from the extension's wheel and registered."""
+def install_extension(extension_zip: Path):
+    """Installs and enables the extension zip in this process's profile (once); returns the package nfield
+    that Blender installed from the extension's wheel and registered."""
     if _installed:
         return _installed[0]
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -62,6 +62,12 @@ def nf(extension_zip):
     assert hasattr(bpy.types.Object, "nfield"), "add-on enabled but Object.nfield is not registered"
     _installed.append(pkg)
     return pkg
+
+
+@pytest.fixture(scope="session")
+def nf(extension_zip):
+    """The package nfield that Blender installed from the extension's wheel and registered."""
+    return install_extension(extension_zip)
 
 
 @pytest.fixture

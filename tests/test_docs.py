@@ -70,6 +70,7 @@ def _has_native() -> bool:
 def _env(tmp_path) -> dict:
     env = package_env()
     env["NFIELD_CACHE_DIR"] = str(tmp_path / "bases")
+    env["PYTHON"] = sys.executable  # the interpreter examples/05_cli.sh runs
     return env
 
 
