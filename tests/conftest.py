@@ -53,8 +53,16 @@ def pytest_sessionstart(session):
     import importlib.util
 
     spec = importlib.util.find_spec("nfield")
-    if spec is not None and spec.origin and _is_checkout_addon(str(Path(spec.origin).parent.parent)):
+    if spec is None:
+        return
+    if spec.origin and _is_checkout_addon(str(Path(spec.origin).parent.parent)):
         pytest.exit(f"NFIELD_TEST_INSTALLED is set, but nfield imports from a checkout: {spec.origin}", returncode=3)
+    import nfield.core  # the compiled module must load (tests that skip without it would pass quietly)
+
+    try:
+        print(f"\n[installed nfield] {nfield.core.native().__file__}", flush=True)
+    except ImportError as exc:
+        pytest.exit(f"NFIELD_TEST_INSTALLED: the installed nfield's compiled module does not load: {exc}", returncode=3)
 
 # The eight meshes copied into tests/data/ (byte-for-byte, sha256 in tests/data/README.md).
 MESH_NAMES = (
