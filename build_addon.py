@@ -300,15 +300,15 @@ def build_backend_requirements() -> list[str]:
 def setup_build_backend() -> Path:
     """The build backend in .venv-tools/backend (pip install --target; reinstalled when pyproject.toml's
     build requirements change). Returns the folder."""
-    wanted = "\n".join(build_backend_requirements()) + "\n"
+    requirements = build_backend_requirements()
     stamp = BACKEND_DIR / "requirements.txt"
-    if stamp.is_file() and stamp.read_text() == wanted:
+    if stamp.is_file() and stamp.read_text().splitlines() == requirements:
         return BACKEND_DIR
     setup_env(TOOLS_ENV)
     shutil.rmtree(BACKEND_DIR, ignore_errors=True)
     run([TOOLS_ENV.python_path, "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
-         "--no-input", "--target", BACKEND_DIR, *wanted.split()])
-    stamp.write_text(wanted)
+         "--no-input", "--target", BACKEND_DIR, *requirements])
+    stamp.write_text("\n".join(requirements) + "\n")
     return BACKEND_DIR
 
 
@@ -389,7 +389,7 @@ class BuildLock:
 
 def cmake_build(build_dir: Path, config: dict, target: str | None = None) -> None:
     """Configure (again only when `config` changed) and build a CMake build directory directly: the
-    sanitizer and fuzz builds (tests/hardening/). The module itself is built through pyproject.toml."""
+    sanitizer and fuzz builds (tests/drivers/). The module itself is built through pyproject.toml."""
     cmake = shutil.which("cmake")
     if cmake is None:
         raise Failure("cmake not found: run `python3 build_addon.py setup` first")
@@ -421,7 +421,6 @@ print("WHEEL " + build_wheel(sys.argv[1], config_settings=json.loads(sys.argv[2]
 
 @dataclass(frozen=True)
 class Built:
-    python: str             # "3.11"
     wheel: Path             # the wheel as built (platform tag linux_x86_64, not yet repaired)
     module: Path            # the compiled module in its build directory (build/<wheel tag>/)
 
@@ -461,7 +460,7 @@ def build_wheel(python: str | None = None, debug: bool = False) -> Built:
     shutil.copy2(module, tmp)
     os.replace(tmp, dest)  # atomic: a process that has the old file mapped keeps working
     say(f"built {shown(str(module))} -> {shown(str(dest))} (Python {info['version']}), wheel {shown(str(wheel))}")
-    return Built(".".join(info["version"].split(".")[:2]), wheel, module)
+    return Built(wheel, module)
 
 
 def build_all(debug: bool = False) -> list[Built]:
