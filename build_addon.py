@@ -282,7 +282,11 @@ def ready_envs() -> list[PythonEnv]:
 
 def link_addon_into_venv() -> None:
     """Make `nfield` importable from .venv (so `.venv/bin/python -m nfield` works from anywhere)
-    through a .pth file naming addon/, the package's source folder (no copy to go stale)."""
+    through a .pth file naming addon/, the package's source folder (no copy to go stale). A .venv that is
+    a link to another checkout's is left alone (its .pth names that checkout)."""
+    if VENV.is_symlink():
+        say(f".venv links to {VENV.resolve()}: its nfield-addon.pth is left as it is")
+        return
     proc = run([VENV_PY, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], capture=True, quiet=True)
     pth = Path(proc.stdout.strip()) / "nfield-addon.pth"
     if not pth.exists() or pth.read_text().strip() != str(ADDON_DIR):
