@@ -70,6 +70,23 @@ def nf(extension_zip):
     return install_extension(extension_zip)
 
 
+def run_script(nf, script: Path, out_dir: Path, timeout: float = 300) -> tuple[dict, float]:
+    """Runs `python script out_dir` in a fresh process of this Python with the installed package `nf` first on
+    PYTHONPATH (a test file run as a script: its own bpy session). Returns (the JSON of the script's last output
+    line, seconds); fails the test with the script's output when it fails."""
+    import json
+    import subprocess
+    import time
+
+    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(script), str(out_dir)], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+    seconds = time.perf_counter() - start
+    assert proc.returncode == 0, f"{script.name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return json.loads(proc.stdout.strip().splitlines()[-1]), seconds
+
+
 @pytest.fixture
 def scene(nf):
     bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -18,18 +18,14 @@ never imports bpy's scene state from it.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
-from blender_support import nf  # noqa: F401  (fixture)
+from blender_support import nf, run_script  # noqa: F401  (fixture)
 
 pytestmark = pytest.mark.blender
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run_checks(out_dir: Path) -> dict:
@@ -226,14 +222,7 @@ def _run_checks(out_dir: Path) -> dict:
 
 
 def test_hatching_curves(tmp_path, nf):
-
-    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))  # the installed package
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), str(tmp_path)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=300)
-    seconds = time.perf_counter() - t0
-    assert proc.returncode == 0, f"script failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    r = json.loads(proc.stdout.strip().splitlines()[-1])
+    r, seconds = run_script(nf, Path(__file__).resolve(), tmp_path)
     print(json.dumps(r, indent=1), f"{seconds:.1f} s")
 
     c = r["convert"]

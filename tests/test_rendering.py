@@ -29,18 +29,15 @@ extension zip (the ``nf`` fixture of tests/blender_support.py) first on PYTHONPA
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import pytest
-from blender_support import nf  # noqa: F401  (fixture)
+from blender_support import nf, run_script  # noqa: F401  (fixture)
 
 pytestmark = pytest.mark.blender
 
-ROOT = Path(__file__).resolve().parent.parent
 SIZE = 64
 SAMPLES = 16
 
@@ -190,13 +187,7 @@ def _mad(a, b) -> float:
 def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path, nf):
     import numpy as np
 
-    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))  # the installed package
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), str(tmp_path)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=300)
-    seconds = time.perf_counter() - t0
-    assert proc.returncode == 0, f"render script failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    info = json.loads(proc.stdout.strip().splitlines()[-1])
+    info, seconds = run_script(nf, Path(__file__).resolve(), tmp_path)
     img = {p.stem: np.load(p) for p in tmp_path.glob("*.npy")}
 
     assert img["aniso_d0"].mean() > 0.01, "the render is black: no light reaches the camera"
