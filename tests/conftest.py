@@ -225,10 +225,14 @@ def legacy_zip() -> Path:
 BLENDER_ONLY_FILES = {"test_blender_headless.py", "test_blender_design.py", "test_blender_failures.py",
                       "test_blender_guides.py", "test_blender_mesh_read.py", "test_blender_artist.py",
                       "test_blender_remesh.py", "test_hatching_blender.py", "test_rendering.py"}
-# The other files holding tests marked `blender` or `gui`. Every remaining file is core only: not imported
-# when the marker expression selects only `blender`/`gui` tests (the Blender legs, where nfield is the
-# extension's and imports only once a test has installed it).
-MIXED_FILES = {"test_examples.py", "test_blender34_legacy.py", "test_blender_window.py"}
+
+
+def _marks_blender_or_gui(path: Path) -> bool:
+    """Whether a test file marks tests `blender` or `gui` (read from its text: the files without such marks
+    are core only and are not imported when the marker expression selects only `blender`/`gui` tests, as in
+    the Blender legs, where nfield is the extension's and imports only once a test has installed it)."""
+    text = path.read_text(errors="replace")
+    return "mark.blender" in text or "mark.gui" in text
 
 
 def _selects(markexpr: str, blender: bool, gui: bool) -> bool:
@@ -253,7 +257,7 @@ def pytest_ignore_collect(collection_path, config):
         return None
     if collection_path.name in BLENDER_ONLY_FILES:
         return True if not _selects(markexpr, blender=True, gui=False) else None
-    if collection_path.name in MIXED_FILES:
+    if collection_path.suffix != ".py" or _marks_blender_or_gui(Path(collection_path)):
         return None
     return True if not _selects(markexpr, blender=False, gui=False) else None
 
