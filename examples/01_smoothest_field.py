@@ -1,16 +1,15 @@
 """01: the smoothest cross field of a sphere, its spectrum and its singularities.
 
-    PYTHONPATH=addon .venv/bin/python examples/01_smoothest_field.py     (from the repository root)
+    PYTHONPATH=addon .venv/bin/python examples/01_smoothest_field.py     (from the repository root;
+    or with nfield pip-installed: python examples/01_smoothest_field.py)
 
 The smoothest n-field is the first eigenvector of the connection Laplacian (docs/math.md). On the unit
 sphere the eigenvalues tend to 2 (l (l + 1) - n^2) for l = n, n + 1, ..., the first one (2n) with 2n + 1
 fields; a field without zeros has singularities whose indices sum to the Euler characteristic (2).
 """
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "addon"))  # this checkout's package (PYTHONPATH=addon does the same)
 
 from nfield.core import Mesh, eigenvalues, smoothest_field  # noqa: E402
 

@@ -1,18 +1,17 @@
 """02: hard direction constraints on the rocker arm (the command line's example files).
 
-    PYTHONPATH=addon .venv/bin/python examples/02_constraints.py     (from the repository root)
+    PYTHONPATH=addon .venv/bin/python examples/02_constraints.py     (from the repository root;
+    or with nfield pip-installed: python examples/02_constraints.py)
 
 A biharmonic (order 2) cross field through four hard direction constraints. A direction constraint says
 "one of the n directions points along d", and nfield guarantees +d, not -d (docs/math.md: the +d
 safeguard): the check below measures the angle between d and the nearest of the n directions.
 """
-import sys
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "addon"))  # this checkout's package (PYTHONPATH=addon does the same)
 
 from nfield.core import Mesh, load_constraints, solve  # noqa: E402
 

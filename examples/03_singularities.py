@@ -1,17 +1,16 @@
 """03: pinning a singularity, and the indices a vertex can carry.
 
-    PYTHONPATH=addon .venv/bin/python examples/03_singularities.py     (from the repository root)
+    PYTHONPATH=addon .venv/bin/python examples/03_singularities.py     (from the repository root;
+    or with nfield pip-installed: python examples/03_singularities.py)
 
 A DesignSession keeps the solver warm between edits. A vertex with k faces and angle defect K can carry
 an index only where |index - K / 2pi| < k / (2n) (docs/math.md: the holonomy-corrected singularity
 constraint); index_range says which. The pinned index is met exactly, and on a closed surface the indices
 of all singularities still sum to the Euler characteristic.
 """
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "addon"))  # this checkout's package (PYTHONPATH=addon does the same)
 
 from nfield.core import DesignSession, Mesh  # noqa: E402
 

@@ -1,12 +1,12 @@
 """04: spectral mode, where changing the alignment strength costs milliseconds (no new factorization).
 
-    PYTHONPATH=addon .venv/bin/python examples/04_spectral.py     (from the repository root)
+    PYTHONPATH=addon .venv/bin/python examples/04_spectral.py     (from the repository root;
+    or with nfield pip-installed: python examples/04_spectral.py)
 
 The first k eigenfields are computed once (cached on disk by mesh content); every solve is then a reduced
 solve of k unknowns, so the alignment strength can be dragged live. The result is the low-pass
 approximation of the exact spline: compare the two (docs/math.md: spectral reduction).
 """
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "addon"))  # this checkout's package (PYTHONPATH=addon does the same)
 
 from nfield.core import DesignSession, Mesh  # noqa: E402
 

@@ -1,13 +1,14 @@
 #!/bin/sh
 # 05: the command line (python -m nfield) on the rocker arm with the example constraint files.
 #
-#     sh examples/05_cli.sh        (from the repository root; PYTHON=... picks another interpreter)
+#     PYTHONPATH=addon sh examples/05_cli.sh     (from the repository root; PYTHON=... picks another
+#     interpreter; with nfield pip-installed there, no PYTHONPATH)
 #
 # Constraint files are JSON lists (see README.md: Command line). Bad arguments exit with code 2 and a
 # one-line message; this script stops at the first failing command.
 set -eu
 PYTHON=${PYTHON:-.venv/bin/python}
-export PYTHONPATH="$(dirname "$0")/../addon${PYTHONPATH:+:$PYTHONPATH}"
+# nfield as installed, or this checkout's with PYTHONPATH=addon (tests/test_examples.py sets it)
 MESH=tests/data/rocker-arm.obj
 OUT=$(mktemp -d)
 trap 'rm -rf "$OUT"' EXIT

@@ -1,6 +1,7 @@
 """06: the add-on's scripting API in Blender without a window (PyPI bpy).
 
-    PYTHONPATH=addon .venv/bin/python examples/06_blender_script.py [out.blend]     (from the repository root)
+    PYTHONPATH=addon .venv/bin/python examples/06_blender_script.py [out.blend]     (from the repository root;
+    or with nfield pip-installed: python examples/06_blender_script.py)
 
 Everything the panel and the tools do is available to scripts through ``nfield.blender`` (docs/
 blender_addon.md). The design is stored on the object (``obj.nfield``), so a saved .blend opens with it,
@@ -11,7 +12,6 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "addon"))  # this checkout's package (PYTHONPATH=addon does the same)
 
 import bpy  # noqa: E402
 

@@ -1,10 +1,11 @@
 """What every headless Blender test file shares: a fresh user profile, PyPI ``bpy``, the add-on installed from
-the packaged zip (fixtures ``nf`` and ``scene``) and small helpers.
+the extension zip (fixtures ``nf`` and ``scene``) and small helpers.
 
-The add-on is installed from the packaged zip (``build_addon.py package``, the ``addon_zip`` fixture of
-conftest.py rebuilds it only when a source is newer) into a temporary user extensions directory and enabled
-as an extension; the tests use that installed copy (``bl_ext.user_default.nfield``), never ``addon/`` (two
-copies of the compiled module in one process would clash).
+The extension zip (``build_addon.py package``; the ``extension_zip`` fixture of conftest.py rebuilds it only
+when a source is newer) is installed into a temporary user extensions directory and enabled: Blender installs
+the wheel matching its Python into the extensions' site-packages and enables the entry module
+``bl_ext.user_default.nfield``, which registers the package ``nfield`` from that wheel. The tests use that
+installed package, never ``addon/`` (`build_addon.py test` runs this suite with NFIELD_TEST_INSTALLED=1).
 
 bpy can only be imported once per process; tests reset the scene with ``read_factory_settings(use_empty=True)``
 (``scene`` fixture) and re-enable the add-on if the reset disabled it. Import this module from a test file
@@ -36,28 +37,61 @@ bpy = pytest.importorskip("bpy", reason="PyPI bpy is not installed in this Pytho
 _installed: list = []  # the installed package, once per process (every test file imports the fixture)
 
 
-@pytest.fixture(scope="session")
-def nf(addon_zip):
-    """The installed, enabled add-on package (module bl_ext.user_default.nfield)."""
+EXTENSION = "bl_ext.user_default.nfield"  # the extension's entry module, as Blender names it
+
+
+def extension_site_packages() -> Path:
+    """Where Blender installs the wheels of the extensions in this profile."""
+    return Path(USER_DIR, "extensions", ".local", "lib", "python%d.%d" % sys.version_info[:2], "site-packages")
+
+
+def install_extension(extension_zip: Path):
+    """Installs and enables the extension zip in this process's profile (once); returns the package nfield
+    that Blender installed from the extension's wheel and registered."""
     if _installed:
         return _installed[0]
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    result = bpy.ops.extensions.package_install_files(filepath=str(addon_zip), repo="user_default",
+    result = bpy.ops.extensions.package_install_files(filepath=str(extension_zip), repo="user_default",
                                                       enable_on_install=True)
     assert result == {"FINISHED"}
-    pkg = importlib.import_module("bl_ext.user_default.nfield")
-    importlib.import_module("bl_ext.user_default.nfield.blender")
-    importlib.import_module("bl_ext.user_default.nfield.core")
+    importlib.import_module(EXTENSION)
+    pkg = importlib.import_module("nfield")
+    assert Path(pkg.__file__).parent == extension_site_packages() / "nfield", pkg.__file__
+    importlib.import_module("nfield.blender")
+    importlib.import_module("nfield.core")
     assert hasattr(bpy.types.Object, "nfield"), "add-on enabled but Object.nfield is not registered"
     _installed.append(pkg)
     return pkg
+
+
+@pytest.fixture(scope="session")
+def nf(extension_zip):
+    """The package nfield that Blender installed from the extension's wheel and registered."""
+    return install_extension(extension_zip)
+
+
+def run_script(nf, script: Path, out_dir: Path, timeout: float = 300) -> tuple[dict, float]:
+    """Runs `python script out_dir` in a fresh process of this Python with the installed package `nf` first on
+    PYTHONPATH (a test file run as a script: its own bpy session). Returns (the JSON of the script's last output
+    line, seconds); fails the test with the script's output when it fails."""
+    import json
+    import subprocess
+    import time
+
+    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(script), str(out_dir)], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+    seconds = time.perf_counter() - start
+    assert proc.returncode == 0, f"{script.name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return json.loads(proc.stdout.strip().splitlines()[-1]), seconds
 
 
 @pytest.fixture
 def scene(nf):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if not hasattr(bpy.types.Object, "nfield"):  # factory settings may disable add-ons: enable again
-        bpy.ops.preferences.addon_enable(module="bl_ext.user_default.nfield")
+        bpy.ops.preferences.addon_enable(module=EXTENSION)
     assert hasattr(bpy.types.Object, "nfield")
     return nf
 

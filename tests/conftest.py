@@ -1,8 +1,12 @@
 """Session-level fixtures for the nfield tests.
 
-The location of the public test meshes (tests/data/, see tests/data/README.md) and the import path of
-the development tree's package (addon/). Helpers: ``mesh_path(name)``, ``core_mesh(name)`` (plain
-functions, ``from conftest import ...``) and the session fixture ``data_dir``.
+The location of the public test meshes (tests/data/, see tests/data/README.md) and which nfield the tests
+import: the development tree's package (addon/, put first on sys.path), or with NFIELD_TEST_INSTALLED=1 the
+installed one (a wheel in a virtual environment, or the extension a Blender test installs; addon/ is then
+kept off sys.path, and the session stops if nfield still comes from a checkout). Files of the repository
+(docs, examples, the layer table) are always read from this checkout. Helpers: ``mesh_path(name)``,
+``core_mesh(name)``, ``package_env()`` (plain functions, ``from conftest import ...``) and the session
+fixture ``data_dir``.
 """
 from __future__ import annotations
 
@@ -15,8 +19,50 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA_DIR = ROOT / "tests" / "data"
-if str(ROOT / "addon") not in sys.path:  # build_addon.py test sets PYTHONPATH; plain pytest runs need this
-    sys.path.insert(0, str(ROOT / "addon"))
+ADDON = ROOT / "addon"
+TEST_INSTALLED = os.environ.get("NFIELD_TEST_INSTALLED", "") not in ("", "0")
+
+
+def _is_checkout_addon(path: str) -> bool:
+    """True for the addon/ folder of an nfield checkout (this one, or another one named by a .pth file)."""
+    folder = Path(path or ".").resolve()
+    return folder.name == "addon" and (folder / "nfield" / "__init__.py").is_file() \
+        and (folder.parent / "build_addon.py").is_file()
+
+
+if TEST_INSTALLED:
+    sys.path[:] = [p for p in sys.path if not _is_checkout_addon(p)]
+elif str(ADDON) not in sys.path:  # build_addon.py test sets PYTHONPATH; plain pytest runs need this
+    sys.path.insert(0, str(ADDON))
+
+
+def package_env(env: dict | None = None) -> dict:
+    """Environment for a subprocess that imports nfield: the one this session tests (PYTHONPATH starts with
+    addon/, or with NFIELD_TEST_INSTALLED no checkout's addon/ on it)."""
+    env = dict(os.environ if env is None else env)
+    paths = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and not _is_checkout_addon(p)]
+    env["PYTHONPATH"] = os.pathsep.join(paths if TEST_INSTALLED else [str(ADDON), *paths])
+    return env
+
+
+def pytest_sessionstart(session):
+    """With NFIELD_TEST_INSTALLED: stop at once unless the nfield that imports is an installed one (the
+    headless Blender suite installs its extension first, so there nfield need not import yet)."""
+    if not TEST_INSTALLED:
+        return
+    import importlib.util
+
+    spec = importlib.util.find_spec("nfield")
+    if spec is None:
+        return
+    if spec.origin and _is_checkout_addon(str(Path(spec.origin).parent.parent)):
+        pytest.exit(f"NFIELD_TEST_INSTALLED is set, but nfield imports from a checkout: {spec.origin}", returncode=3)
+    import nfield.core  # the compiled module must load (tests that skip without it would pass quietly)
+
+    try:
+        print(f"\n[installed nfield] {nfield.core.native().__file__}", flush=True)
+    except ImportError as exc:
+        pytest.exit(f"NFIELD_TEST_INSTALLED: the installed nfield's compiled module does not load: {exc}", returncode=3)
 
 # The eight meshes copied into tests/data/ (byte-for-byte, sha256 in tests/data/README.md).
 MESH_NAMES = (
@@ -144,7 +190,8 @@ def pytest_configure(config):
 
 
 # ------------------------------------------------------------------------------------------ the packaged add-on
-PACKAGE_SOURCES = [ROOT / "addon" / "nfield", ROOT / "native", ROOT / "CMakeLists.txt", ROOT / "build_addon.py"]
+PACKAGE_SOURCES = [ROOT / "addon", ROOT / "native", ROOT / "CMakeLists.txt", ROOT / "pyproject.toml",
+                   ROOT / "build_addon.py"]
 
 
 def _newest_source_mtime() -> float:
@@ -164,42 +211,76 @@ def package_version() -> str:
     raise AssertionError("addon/nfield/__init__.py has no __version__")
 
 
-@pytest.fixture(scope="session")
-def addon_zip() -> Path:
-    """dist/nfield-<version>-linux-x64.zip (the extension with a compiled module per Python set up),
-    rebuilt with `build_addon.py package` when older than a source. `build_addon.py test` packages it before
-    the Blender legs, so each leg reuses it. Runs build_addon.py with the system python3 (standard library
-    only), so packaging never depends on the interpreter running the tests."""
+def _packaged(name: str) -> Path:
+    """dist/<name>, rebuilt with `build_addon.py package` (the wheels, then both zips) when older than a
+    source. `build_addon.py test` packages before the Blender legs, so each leg reuses it. Runs build_addon.py
+    with the system python3 (standard library only), so packaging never depends on the interpreter running
+    the tests."""
     import shutil
     import subprocess
 
-    z = ROOT / "dist" / f"nfield-{package_version()}-linux-x64.zip"
+    z = ROOT / "dist" / name
     if not z.exists() or z.stat().st_mtime < _newest_source_mtime():
         python = shutil.which("python3") or sys.executable
         proc = subprocess.run([python, str(ROOT / "build_addon.py"), "package"], cwd=ROOT,
-                              capture_output=True, text=True, timeout=1800)
+                              capture_output=True, text=True, timeout=3600)
         assert proc.returncode == 0, f"build_addon.py package failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    assert z.is_file()
+    assert z.is_file(), z
     return z
+
+
+@pytest.fixture(scope="session")
+def extension_zip() -> Path:
+    """dist/nfield-<version>-linux-x64.zip: the Blender extension (4.2 and later) made from the wheels."""
+    return _packaged(f"nfield-{package_version()}-linux-x64.zip")
+
+
+@pytest.fixture(scope="session")
+def legacy_zip() -> Path:
+    """dist/nfield-<version>-blender34-legacy.zip: the legacy add-on for Blender 3.4, from the 3.11 wheel."""
+    return _packaged(f"nfield-{package_version()}-blender34-legacy.zip")
 
 
 # Files that need PyPI bpy at import time: not even imported when the marker expression deselects
 # `blender` (the core legs then never load bpy, and under a Python without bpy nothing is skipped either).
 BLENDER_ONLY_FILES = {"test_blender_headless.py", "test_blender_design.py", "test_blender_failures.py",
                       "test_blender_guides.py", "test_blender_guide_tools.py", "test_blender_mesh_read.py", "test_blender_artist.py",
-                      "test_blender_remesh.py"}
+                      "test_blender_remesh.py", "test_hatching_blender.py", "test_rendering.py", "test_demo.py"}
+
+
+def _marks_blender_or_gui(path: Path) -> bool:
+    """Whether a test file marks tests `blender` or `gui` (read from its text: the files without such marks
+    are core only and are not imported when the marker expression selects only `blender`/`gui` tests, as in
+    the Blender legs, where nfield is the extension's and imports only once a test has installed it)."""
+    text = path.read_text(errors="replace")
+    return "mark.blender" in text or "mark.gui" in text
+
+
+def _selects(markexpr: str, blender: bool, gui: bool) -> bool:
+    """Whether -m markexpr selects some test with these `blender`/`gui` marks (any other marks)."""
+    import itertools
+    import re
+
+    from _pytest.mark.expression import Expression  # pytest's own -m evaluator
+
+    expr = Expression.compile(markexpr)
+    others = sorted(set(re.findall(r"[A-Za-z_]\w*", markexpr)) - {"and", "or", "not", "blender", "gui"})
+    for values in itertools.product((False, True), repeat=len(others)):
+        marks = dict(zip(others, values), blender=blender, gui=gui)
+        if expr.evaluate(lambda name, **_kw: marks.get(name, False)):
+            return True
+    return False
 
 
 def pytest_ignore_collect(collection_path, config):
-    if collection_path.name not in BLENDER_ONLY_FILES:
-        return None
     markexpr = config.getoption("markexpr", "") or ""
-    if not markexpr:
+    if not markexpr or not collection_path.name.startswith("test_"):
         return None
-    from _pytest.mark.expression import Expression  # pytest's own -m evaluator
-
-    selected = Expression.compile(markexpr).evaluate(lambda name, **_kw: name == "blender")
-    return True if not selected else None
+    if collection_path.name in BLENDER_ONLY_FILES:
+        return True if not _selects(markexpr, blender=True, gui=False) else None
+    if collection_path.suffix != ".py" or _marks_blender_or_gui(Path(collection_path)):
+        return None
+    return True if not _selects(markexpr, blender=False, gui=False) else None
 
 
 # ------------------------------------------------------------------------------------------ PyPI bpy processes
@@ -224,31 +305,8 @@ def end_bpy_process(code: int = 0) -> None:
     sys.exit(code)
 
 
-def run_bpy_script(script: Path, out_dir: Path, timeout: float = 300) -> tuple[dict, float]:
-    """Runs `script` (a test file that does its Blender work when run as a script) in its own process of this
-    Python with PYTHONPATH=addon, so it never shares a process with the packaged extension that
-    blender_support installs; returns the JSON its last stdout line holds and the seconds it took. Skips
-    (with the reason printed) where this Python has no PyPI bpy."""
-    import importlib.util
-    import json
-    import subprocess
-    import time
-
-    if importlib.util.find_spec("bpy") is None:
-        print("SKIP: bpy (PyPI) is not installed")
-        pytest.skip("bpy (PyPI) is not installed")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT / "addon") + os.pathsep + env.get("PYTHONPATH", "")
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, str(Path(script).resolve()), str(out_dir)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=timeout)
-    seconds = time.perf_counter() - t0
-    assert proc.returncode == 0, f"{Path(script).name} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
-    return json.loads(proc.stdout.strip().splitlines()[-1]), seconds
-
-
 def bpy_script_main(work) -> None:
-    """The script side of run_bpy_script: `work(out_dir)` with the directory given as the first argument
+    """The script side of blender_support.run_script: `work(out_dir)` with the directory given as the first argument
     (created), its result printed as the last line of JSON, then the process ended (end_bpy_process)."""
     import json
 

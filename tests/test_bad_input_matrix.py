@@ -20,7 +20,6 @@ holds the table of outcomes; ``test_docs_list_every_case`` keeps it complete.
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
@@ -33,9 +32,7 @@ import numpy as np
 import pytest
 
 import meshgen as mg
-
-ROOT = Path(__file__).resolve().parent.parent
-ADDON = ROOT / "addon"
+from conftest import ROOT, TEST_INSTALLED, package_env
 #: a CLI run on these tiny meshes takes about a second (interpreter start, numpy, the compiled module);
 #: anything near this limit is a hang, not slowness (also under the shared machine's load)
 CLI_TIMEOUT = 60.0
@@ -448,8 +445,16 @@ def check_field(directions, normals, active, n, constraints, *, raw=None, rep=No
 
 
 # ------------------------------------------------------------------------------------------ core layer
-nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
-core = pytest.importorskip("nfield.core")
+# The cases and checks above are shared with tests/test_blender_failures.py, which imports this file before
+# the Blender suite has installed nfield: only the tests below need the compiled module.
+try:
+    import nfield._native as nat
+    import nfield.core as core
+except ImportError:
+    if TEST_INSTALLED and "bpy" not in sys.modules:
+        raise  # an installed nfield always has its compiled module
+    nat = core = None
+needs_native = pytest.mark.skipif(nat is None, reason="compiled module nfield._native is not built")
 
 
 def _core_constraints(case):
@@ -469,6 +474,7 @@ def run_core(case):
     return mesh, core.solve(mesh, constraints=dirs, vector_constraints=vecs, singularities=sings, **p)
 
 
+@needs_native
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_core(case):
     if case.error is not None:
@@ -533,8 +539,7 @@ def cli_args(case, tmp_path: Path):
 
 
 def run_cli(args):
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ADDON)
+    env = package_env()
     t0 = time.perf_counter()
     try:
         proc = subprocess.run([sys.executable, "-m", "nfield", *args], capture_output=True, text=True, env=env,
@@ -544,6 +549,7 @@ def run_cli(args):
     return proc, time.perf_counter() - t0
 
 
+@needs_native
 @pytest.mark.slow  # one CLI process per case; the in-process test above covers the same cases quickly
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
 def test_cli(case, tmp_path):
@@ -596,12 +602,13 @@ print("CLI exit", main(["solve", path, "--n", "4", "--order", "4"]))
 """
 
 
+@needs_native
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs RLIMIT_AS and /proc (Linux)")
 @pytest.mark.no_sanitizer  # ASan reserves terabytes of address space: RLIMIT_AS cannot be lowered under it
 def test_out_of_memory_is_memory_error_and_cli_exit_2(tmp_path):
     """A real std::bad_alloc (address space limited to 64 MB above what the process uses, in a subprocess):
     the core raises MemoryError, the CLI exits 2 with one line (not exit 1, not a traceback)."""
-    env = dict(os.environ, PYTHONPATH=str(ADDON), OPENBLAS_NUM_THREADS="1")
+    env = dict(package_env(), OPENBLAS_NUM_THREADS="1")
     proc = subprocess.run([sys.executable, "-c", _OOM_SCRIPT, str(Path(__file__).parent), str(tmp_path / "big.off")],
                           capture_output=True, text=True, env=env, timeout=CLI_TIMEOUT * 2)
     assert "CORE MemoryError" in proc.stdout, proc.stdout + proc.stderr

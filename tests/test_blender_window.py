@@ -1,9 +1,9 @@
 """A real Blender window: Debian's GUI Blender 3.4.1 under Xvfb, driven with xdotool.
 
-The packaged add-on (``python3 build_addon.py package`` -> dist/nfield-*.zip) is installed into a temporary
-user profile; tests/blender_scripts/window_session.py builds the scene (icosphere with rotation and
-non-uniform scale), maximizes the 3D view, activates the constraint tool and tells us where to click. We
-press on a face, drag, release (xdotool), and Blender reports back what it stored.
+The legacy add-on zip (``python3 build_addon.py package`` -> dist/nfield-*-blender34-legacy.zip) is
+installed into a temporary user profile; tests/blender_scripts/window_session.py builds the scene (icosphere
+with rotation and non-uniform scale), maximizes the 3D view, activates the constraint tool and tells us where
+to click. We press on a face, drag, release (xdotool), and Blender reports back what it stored.
 
 Checks:
 * exactly one constraint, on the clicked face, tangent to it;
@@ -44,7 +44,6 @@ import math
 import os
 import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -252,12 +251,12 @@ def _check_undo(undo) -> str:
     return ""
 
 
-def test_constraint_drag_in_real_window(tmp_path, addon_zip):
+def test_constraint_drag_in_real_window(tmp_path, legacy_zip):
     env, xvfb, log = _start_xvfb(tmp_path)
     blender = None
     try:
         work = tmp_path / "work"
-        blender = _start_blender(env, SCRIPT, [work, addon_zip], log)
+        blender = _start_blender(env, SCRIPT, [work, legacy_zip], log)
         ready = _wait_file(work / "ready.json", blender, 180)
         if "error" in ready:
             raise AssertionError(ready["error"])
@@ -387,7 +386,7 @@ def _angle_mod(a, b, n) -> float:
     return min(ang % period, period - ang % period)
 
 
-def test_comb_brush_in_real_window(tmp_path, addon_zip):
+def test_comb_brush_in_real_window(tmp_path, legacy_zip):
     """The comb tool on the Stanford bunny (69,451 faces) in Debian's Blender 3.4 under Xvfb: a horizontal
     drag across the body (tests/blender_scripts/window_comb.py) paints the comb attribute along the stroke
     in the drag's direction, the solved field there turns to it, and one undo removes the stroke."""
@@ -395,7 +394,7 @@ def test_comb_brush_in_real_window(tmp_path, addon_zip):
     blender = None
     try:
         work = tmp_path / "work"
-        blender = _start_blender(env, COMB_SCRIPT, [work, addon_zip, ROOT / "tests" / "data" / "stanford-bunny.obj"],
+        blender = _start_blender(env, COMB_SCRIPT, [work, legacy_zip, ROOT / "tests" / "data" / "stanford-bunny.obj"],
                                  log)
         ready = _wait_file(work / "ready.json", blender, 300)
         if "error" in ready:

@@ -1,6 +1,7 @@
 """Command line ``python -m nfield``: eig / solve / info, output files, JSON, and one-line errors (exit 2).
 
-Every CLI call runs in a subprocess, exactly as a user would run it, with PYTHONPATH pointing at addon/.
+Every CLI call runs in a subprocess, exactly as a user would run it, with the nfield this session tests
+(conftest.package_env: addon/, or the installed package).
 Expected values:
   * eig on the icosphere (R ~ 1): the n = 1 spectrum of the complex connection Laplacian tends to
     2 (l (l + 1) - n^2) / R^2, l >= n, multiplicity 2 l + 1 (docs/conventions), i.e. 2, 2, 2, 10, 10, 10 ...
@@ -23,20 +24,20 @@ import numpy as np
 import pytest
 from conftest import needs_native
 
-ROOT = Path(__file__).resolve().parent.parent
-ADDON = ROOT / "addon"
+from conftest import ADDON, ROOT, package_env
+
 DATA = Path(__file__).parent / "data"
 EXAMPLES = ROOT / "examples"
-if str(ADDON) not in sys.path:
-    sys.path.insert(0, str(ADDON))
 
 
 
 
 # ---------------------------------------------------------------------------------------- helpers
-def run_cli(*args, pythonpath: Path = ADDON, env_extra: dict | None = None, cwd: Path | None = None):
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(pythonpath)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+def run_cli(*args, pythonpath: Path | None = None, env_extra: dict | None = None, cwd: Path | None = None):
+    """`python -m nfield ARGS` in a subprocess: the nfield this session tests, or the one in `pythonpath`."""
+    env = package_env()
+    if pythonpath is not None:
+        env["PYTHONPATH"] = os.pathsep.join([str(pythonpath)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
     env.pop("NFIELD_DEBUG", None)
     if env_extra:
         env.update(env_extra)

@@ -19,14 +19,10 @@ import numpy as np
 import pytest
 from conftest import has_native, needs_native
 
-ROOT = Path(__file__).resolve().parent.parent
-ADDON = ROOT / "addon"
-DATA = Path(__file__).parent / "data"
-if str(ADDON) not in sys.path:
-    sys.path.insert(0, str(ADDON))
-
-import nfield  # noqa: E402
-from nfield.core import (  # noqa: E402
+import nfield
+from conftest import DATA_DIR as DATA
+from conftest import package_env
+from nfield.core import (
     DirectionConstraint,
     FieldResult,
     Mesh,
@@ -71,7 +67,7 @@ def test_bl_info_and_lazy_imports():
             "assert 'nfield._native' not in sys.modules, 'native imported eagerly'; "
             "assert 'bpy' not in sys.modules, 'bpy imported'; print('ok')")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env={"PYTHONPATH": str(ADDON), "PATH": "/usr/bin:/bin"})
+                          env=package_env({"PATH": "/usr/bin:/bin"}))
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr
 
 

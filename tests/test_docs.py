@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-ADDON = ROOT / "addon"
+from conftest import ROOT, package_env
+
 # The sanitizer job runs a copy of tests/ without the docs beside it (the docs run the same native code the
 # core tests run under ASan): the test is left out there, and collecting it must not fail.
 pytestmark = pytest.mark.no_sanitizer
@@ -34,7 +34,10 @@ FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 SKIP_RULES = [
     (re.compile(r"build_addon\.py (demo|test|setup|bench|fuzz|sanitize)\b"),
      "installs packages and/or runs for minutes (covered by CI's own run of build_addon.py test)"),
-    (re.compile(r"build_addon\.py build\b"), "rebuilds the native module (minutes); the suite runs on the built one"),
+    (re.compile(r"build_addon\.py (build|wheel|package)\b"),
+     "rebuilds the native module (minutes); the suite runs on the built one"),
+    (re.compile(r"\bpip install\b"), "installs packages (build_addon.py test runs `pip install .` in fresh "
+                                      "virtual environments)"),
     (re.compile(r"^build/fuzz"), "runs a libFuzzer binary for up to an hour (docs/hardening.md)"),
     (re.compile(r"\b(MESH|OUT\.obj|C\.json|FIELD\.npy|N|K|M|T)\b(?![./\w])|\[--"),
      "a usage line with placeholders (MESH, N, [--option]), not a command"),
@@ -66,13 +69,15 @@ def _blocks():
 
 
 def _has_native() -> bool:
-    return any((ADDON / "nfield").glob("_native*.so"))
+    import importlib.util
+
+    return importlib.util.find_spec("nfield._native") is not None
 
 
 def _env(tmp_path) -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = str(ADDON) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    env = package_env()
     env["NFIELD_CACHE_DIR"] = str(tmp_path / "bases")
+    env["PYTHON"] = sys.executable  # the interpreter examples/05_cli.sh runs
     return env
 
 
@@ -97,7 +102,6 @@ def _why_skip(cmd: str) -> str | None:
 
 def _python_namespace(tmp_path) -> dict:
     """The names docs/python_api.md says its blocks assume, on the 1,280-face sphere."""
-    sys.path.insert(0, str(ADDON))
     import nfield.core as core
 
     ns: dict = {}
@@ -146,10 +150,12 @@ def test_doc_code_block(path, line, lang, block, tmp_path, monkeypatch):
             continue
         argv = shlex.split(cmd.split(" #", 1)[0])
         if argv[:1] == ["export"]:
-            continue  # the environment is set up by this test (PYTHONPATH=addon)
+            continue  # the environment is set up by this test (conftest.package_env)
         while argv and re.match(r"^[A-Z_]+=", argv[0]):  # VAR=value prefixes: the same environment
             argv.pop(0)
         argv = [sys.executable if a in ("python", ".venv/bin/python") else a for a in argv]
+        if argv[:1] == ["nfield"]:  # the installed command line: the same as `python -m nfield` here
+            argv[:1] = [sys.executable, "-m", "nfield"]
         if "--out" in argv:  # outputs go to the test's directory, not the repository
             i = argv.index("--out") + 1
             argv[i] = str(tmp_path / Path(argv[i]).name)

@@ -8,14 +8,13 @@ unit tests cover): ``build_addon.py test --quick`` and the sanitizer job leave t
 """
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import ROOT, TEST_INSTALLED, package_env
 
-ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted(p for p in (ROOT / "examples").iterdir() if p.name[:2].isdigit() and p.suffix in (".py", ".sh"))
 
 
@@ -30,12 +29,18 @@ def test_examples_are_numbered_in_order():
 
 
 @pytest.mark.parametrize("path", [_param(p) for p in EXAMPLES])
-def test_example_runs(path, tmp_path):
-    pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
-    env = dict(os.environ, PYTHON=sys.executable, PYTHONPATH=str(ROOT / "addon"))
+def test_example_runs(path, tmp_path, request):
+    if not TEST_INSTALLED:  # an installed nfield always has its compiled module
+        pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
+    env = dict(package_env(), PYTHON=sys.executable)
     if "import bpy" in path.read_text():  # an empty Blender user profile: no installed copy of the add-on
         for key in ("SCRIPTS", "EXTENSIONS", "CONFIG", "DATAFILES"):
             env[f"BLENDER_USER_{key}"] = str(tmp_path / key.lower())
+        if TEST_INSTALLED:  # the package Blender installed from the extension zip (tests/blender_support.py)
+            from blender_support import install_extension
+
+            installed = install_extension(request.getfixturevalue("extension_zip"))
+            env["PYTHONPATH"] = str(Path(installed.__file__).parents[1])
     cmd = ["sh", str(path)] if path.suffix == ".sh" else [sys.executable, str(path)]
     proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     print(proc.stdout[-3000:])

@@ -11,8 +11,9 @@
 * both operators (nfield.hatching, nfield.material_anisotropic) run from a script;
 * a tiny Cycles render shows the strokes (they darken a self-lit white sheet).
 
-Everything runs in a subprocess (this file as a script, PYTHONPATH=addon) so that it never shares a
-process with the packaged extension that tests/blender_support.py installs.
+Everything runs in a subprocess (this file as a script) with the nfield that Blender installed from the
+extension zip (the ``nf`` fixture of tests/blender_support.py) first on PYTHONPATH; the test process itself
+never imports bpy's scene state from it.
 """
 from __future__ import annotations
 
@@ -21,11 +22,9 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import run_bpy_script
+from blender_support import nf, run_script  # noqa: F401  (fixture)
 
 pytestmark = pytest.mark.blender
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run_checks(out_dir: Path) -> dict:
@@ -221,8 +220,8 @@ def _run_checks(out_dir: Path) -> dict:
     return res
 
 
-def test_hatching_curves(tmp_path):
-    r, seconds = run_bpy_script(Path(__file__), tmp_path)
+def test_hatching_curves(tmp_path, nf):
+    r, seconds = run_script(nf, Path(__file__).resolve(), tmp_path)
     print(json.dumps(r, indent=1), f"{seconds:.1f} s")
 
     c = r["convert"]

@@ -12,7 +12,6 @@ refusals are deterministic whatever the machine has. Checked:
 """
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -21,7 +20,7 @@ import numpy as np
 import pytest
 
 from conftest import DATA_DIR as DATA
-from conftest import ROOT, core_mesh
+from conftest import core_mesh, package_env
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
@@ -47,8 +46,6 @@ def test_available_memory_and_user_cap(monkeypatch):
 # Peak RSS from VmHWM (this process's address space): ru_maxrss would start at the forking parent's peak,
 # which Linux carries over exec.
 PROBE = """
-import sys
-sys.path.insert(0, {addon!r})
 from nfield.core import Mesh, native
 nat = native()
 mesh = Mesh.from_file({path!r})
@@ -67,8 +64,9 @@ print(est, after - before)
 @pytest.mark.slow
 @pytest.mark.no_sanitizer  # ASan's allocator changes the peak RSS this compares with
 def test_basis_estimate_matches_measured_peak():
-    code = PROBE.format(addon=str(ROOT / "addon"), path=str(DATA / "fandisk.obj"), k=250)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True)
+    code = PROBE.format(path=str(DATA / "fandisk.obj"), k=250)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=True,
+                         env=package_env())
     est, measured = (int(x) for x in out.stdout.split())
     print(f"fandisk k=250: estimate {est / 2**20:.0f} MB, measured peak growth {measured / 2**20:.0f} MB")
     assert 0.5 <= est / measured <= 3.0

@@ -7,7 +7,6 @@ bunny and the armadillo are marked `slow`)."""
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 import sys
 import threading
@@ -15,7 +14,7 @@ import threading
 import numpy as np
 import pytest
 
-from conftest import MESH_NAMES, ROOT, core_mesh, mesh_path, run_beside_main_loop
+from conftest import MESH_NAMES, core_mesh, mesh_path, package_env, run_beside_main_loop
 import meshgen
 from nfield.core import (
     DesignSession,
@@ -299,7 +298,7 @@ def test_progress_cancel_and_gil(fandisk):
 # ---------------------------------------------------------------------------------------------- CLI
 def _cli(*args):
     # The environment is kept (the sanitizer job's LD_PRELOAD / ASAN_OPTIONS must reach the child).
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "addon"))
+    env = package_env()
     env.pop("NFIELD_DEBUG", None)
     return subprocess.run([sys.executable, "-m", "nfield", *map(str, args)], capture_output=True, text=True,
                           env=env, timeout=300)

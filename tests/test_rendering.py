@@ -23,8 +23,8 @@ Measurements (mean absolute difference of linear RGB over all pixels):
   with the rotated constraint (the tangent is transformed from object to world space): below the noise floor
   (both measured bit-identical: Cycles' anisotropic GGX does not depend on the tangent's sign).
 
-The renders run in a subprocess (this file run as a script with PYTHONPATH=addon), so the test never shares a
-process with another copy of the add-on (tests/blender_support.py installs the packaged extension).
+The renders run in a subprocess (this file run as a script) with the nfield that Blender installed from the
+extension zip (the ``nf`` fixture of tests/blender_support.py) first on PYTHONPATH.
 """
 from __future__ import annotations
 
@@ -32,11 +32,10 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import run_bpy_script
+from blender_support import nf, run_script  # noqa: F401  (fixture)
 
 pytestmark = pytest.mark.blender
 
-ROOT = Path(__file__).resolve().parent.parent
 SIZE = 64
 SAMPLES = 16
 
@@ -183,10 +182,10 @@ def _mad(a, b) -> float:
     return float(np.abs(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)).mean())
 
 
-def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path):
+def test_rotating_a_constraint_moves_the_anisotropic_highlight(tmp_path, nf):
     import numpy as np
 
-    info, seconds = run_bpy_script(Path(__file__), tmp_path)
+    info, seconds = run_script(nf, Path(__file__).resolve(), tmp_path)
     img = {p.stem: np.load(p) for p in tmp_path.glob("*.npy")}
 
     assert img["aniso_d0"].mean() > 0.01, "the render is black: no light reaches the camera"

@@ -2,6 +2,8 @@
 
     DISPLAY=:99 blender --factory-startup -noaudio --python bench_overlay_armadillo.py -- ADDON_ZIP MESH [OUT.json]
 
+ADDON_ZIP is the legacy add-on zip (dist/nfield-<version>-blender34-legacy.zip; Debian's Blender is 3.4).
+
 Measures: the first batch build per density (geometry read + the view's subsample + glyph batch), the rebuild
 after a new solve at the same density and view (the live path: sample cached), and the viewport redraw time
 with the overlay (``wm.redraw_timer``, DRAW, 20 iterations) against the same view without the overlay. The

@@ -2,7 +2,7 @@
 
 Scripting API (see ``api``)::
 
-    import nfield.blender as nb     # an installed extension is bl_ext.<repo>.nfield.blender
+    import nfield.blender as nb     # the same name in Blender 4.2+ (the extension installs the nfield wheel)
     nb.add_constraint(obj, 12, (1, 0, 0))
     nb.add_singularity(obj, 7, 0.25)
     result = nb.solve(obj, n=4, order=2, align="curvature-max", strength=1.0)

@@ -1,6 +1,6 @@
 """nfield's scripting API for Blender (batch scripts, ``blender -b file.blend --python script.py``, PyPI bpy).
 
-    import nfield.blender as nb          # inside Blender with the extension: import bl_ext.user_default.nfield.blender
+    import nfield.blender as nb          # the same name with the extension (it installs the nfield wheel)
     obj = bpy.data.objects["Mesh"]
     nb.add_constraint(obj, face=12, direction=(1, 0, 0))
     nb.add_singularity(obj, vertex=7, index=0.25)

@@ -26,7 +26,7 @@ class NativeModuleError(ImportError):
 
 
 def _package_name() -> str:
-    # __package__ is "nfield.core" (or e.g. "bl_ext.user_default.nfield.core" inside Blender).
+    # __package__ is "nfield.core" (or "<copy>.nfield.core" for a copy of the package under another name).
     return (__package__ or "nfield.core").rpartition(".")[0] or "nfield"
 
 
@@ -46,7 +46,8 @@ def _describe_failure(exc: BaseException) -> str:
     except OSError:
         found = []
     here = f"{sys.version_info.major}.{sys.version_info.minor}"
-    rebuild = f"run build_addon.py build --python {sys.executable}"
+    rebuild = (f"reinstall nfield for this Python (pip install), or in a checkout run build_addon.py build "
+               f"--python {sys.executable}")
     versions = sorted({v for v in (_built_for(f) for f in found) if v}, key=lambda v: tuple(map(int, v.split("."))))
     if not found:
         what = f"no compiled module (_native*.so / _native*.pyd) is in {folder}; this is Python {here}"
