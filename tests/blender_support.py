@@ -70,15 +70,26 @@ def nf(extension_zip):
     return install_extension(extension_zip)
 
 
+def script_env(nf, profile: Path) -> dict:
+    """Environment of a child bpy process that uses the installed package `nf` (first on PYTHONPATH) with an
+    empty Blender user profile of its own under `profile`: a child sharing this process's profile would see
+    the installed extension, and Blender ending there may tidy the extension's wheel folder away under this
+    process's feet."""
+    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))
+    for key in ("SCRIPTS", "EXTENSIONS", "CONFIG", "DATAFILES"):
+        env[f"BLENDER_USER_{key}"] = str(Path(profile) / key.lower())
+    return env
+
+
 def run_script(nf, script: Path, out_dir: Path, timeout: float = 300) -> tuple[dict, float]:
     """Runs `python script out_dir` in a fresh process of this Python with the installed package `nf` first on
-    PYTHONPATH (a test file run as a script: its own bpy session). Returns (the JSON of the script's last output
-    line, seconds); fails the test with the script's output when it fails."""
+    PYTHONPATH (a test file run as a script: its own bpy session and user profile). Returns (the JSON of the
+    script's last output line, seconds); fails the test with the script's output when it fails."""
     import json
     import subprocess
     import time
 
-    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))
+    env = script_env(nf, Path(out_dir) / "profile")
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, str(script), str(out_dir)], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=timeout)

@@ -398,7 +398,11 @@ def _grease_pencil(name, strokes, layer_offset, frame=1):
     """A Grease Pencil object of this Blender (legacy GPENCIL up to 4.2, GREASEPENCIL from 4.3) whose layer
     "guides" is moved by `layer_offset` and holds `strokes` (lists of points) at `frame`; a hidden layer
     holds a stroke far away. Returns (object, kind) or (None, reason)."""
-    data = getattr(bpy.data, "grease_pencils_v3", None) or getattr(bpy.data, "grease_pencils", None)
+    # 4.3 to 4.5 have both collections and only the v3 one makes objects (an empty collection is falsy: test
+    # for None, not truth)
+    data = getattr(bpy.data, "grease_pencils_v3", None)
+    if data is None:
+        data = getattr(bpy.data, "grease_pencils", None)
     if data is None:
         return None, f"Blender {bpy.app.version_string} has no Grease Pencil data"
     gp = data.new(name)

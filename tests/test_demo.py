@@ -15,7 +15,7 @@ import struct
 from pathlib import Path
 
 import pytest
-from blender_support import nf  # noqa: F401  (fixture)
+from blender_support import nf, script_env  # noqa: F401  (fixture)
 
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
@@ -32,11 +32,10 @@ def _png_size(path: Path) -> tuple[int, int]:
 
 
 def test_demo_runs_and_renders(tmp_path, nf):
-    import os
     import subprocess
     import sys
 
-    env = dict(os.environ, PYTHONPATH=str(Path(nf.__file__).parent.parent))
+    env = script_env(nf, tmp_path / "profile")
     proc = subprocess.run([sys.executable, str(DEMO), "--out", str(tmp_path), "--size", f"{WIDTH}x{HEIGHT}",
                            "--samples", "1"], cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, f"demo failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
