@@ -120,10 +120,21 @@ Eigen::MatrixXcd HermitianFactor::extended_residual(const Eigen::MatrixXcd& B, c
   return R;
 }
 
+namespace {
+/// max_i max(|Re v_i|, |Im v_i|): within a factor sqrt(2) of max_i |v_i|, without a hypot per entry (a third of
+/// the cost of an unrefined solve on the bunny) and without the overflow of squared magnitudes.
+double max_component(const ComplexVector& v) {
+  const Eigen::Map<const Eigen::VectorXd> parts(reinterpret_cast<const double*>(v.data()), 2 * v.size());
+  return v.size() ? parts.cwiseAbs().maxCoeff() : 0.0;
+}
+}  // namespace
+
 double HermitianFactor::relative_residual(const ComplexVector& b, const ComplexVector& x) const {
-  const double scale = b.cwiseAbs().maxCoeff();
-  if (!(scale > 0)) return x.cwiseAbs().maxCoeff() > 0 ? 1.0 : 0.0;
-  return (b - matrix_ * x).cwiseAbs().maxCoeff() / scale;
+  const double scale = max_component(b);
+  if (!(scale > 0)) return max_component(x) > 0 ? 1.0 : 0.0;
+  ComplexVector r = b;
+  r.noalias() -= matrix_ * x;
+  return max_component(r) / scale;
 }
 
 ComplexVector HermitianFactor::solve(const ComplexVector& b, int* refinements) const {

@@ -64,7 +64,6 @@ from .solve import (
     _check_strength,
     _check_weights,
     _face_vectors,
-    _normalize,
     _result,
     _singularity_numerators,
 )
@@ -265,7 +264,7 @@ class DesignSession(SessionGuides, SessionLive):
         ops = self._operators()
         w = spectral.low_pass(ops, self._basis, field)
         s = self._settings
-        return _result(self.mesh, ops, _normalize(w), w, n=s["n"], order=s["order"], align=s["align"],
+        return _result(self.mesh, ops, w, n=s["n"], order=s["order"], align=s["align"],
                        strength=s["strength"], weights=s["weights"], lam=None, sign_fixed=[], t0=t0,
                        details=details, mode="spectral", basis_size=int(self._basis.size))
 
@@ -435,10 +434,9 @@ class DesignSession(SessionGuides, SessionLive):
                 w, lam, sign_fixed = self._solve_exact(ops, inputs)
                 self._remember_global(inputs, w)
             mode, basis_size = "exact", None
-        u = _normalize(w)
         self._dirty = False
         self.guide_report = inputs.report
-        self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
+        self.field = _result(self.mesh, ops, w, n=s["n"], order=s["order"], align=s["align"],
                              strength=s["strength"], weights=s["weights"], lam=lam, sign_fixed=sign_fixed,
                              t0=t0, details=details, mode=mode, basis_size=basis_size, guides=inputs.report)
         self.field.live_region = None if region is None else int(len(region))

@@ -248,54 +248,23 @@ def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], 
     return out
 
 
-def _normalize(w: np.ndarray) -> np.ndarray:
-    """w / |w| per entry (0 where w = 0). Real and imaginary parts are divided separately: numpy's complex
-    division computes 1 / |w|, which overflows for subnormal w (a flat mesh with subnormal bumps gives a
-    subnormal curvature alignment and solution) and turned such a field into inf / NaN."""
-    mag = np.abs(w)
-    u = np.zeros_like(w)
-    nz = mag > 0
-    u.real[nz] = w.real[nz] / mag[nz]
-    u.imag[nz] = w.imag[nz] / mag[nz]
-    return u
-
-
-_FRAMES: dict = {}
-
-
-def _frames(ops) -> np.ndarray:
-    """(T, 2, 3) face frames of ops, cached per operator object (they are immutable)."""
-    key = id(ops)
-    cached = _FRAMES.get(key)
-    if cached is None or cached[0] is not ops:
-        _FRAMES.clear()  # keep only the most recent operators alive
-        cached = _FRAMES[key] = (ops, np.asarray(ops.frames, dtype=np.float64))
-    return cached[1]
-
-
-def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
+def _result(mesh: Mesh, ops, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
             details: bool = True, mode: str = "exact", basis_size: int | None = None, guides: Any = None) -> FieldResult:
-    """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
-    nat = native()
-    # The first direction from the frames; the n-fold set on demand (all_directions()).
-    frames = _frames(ops)
-    angle = np.angle(u) / n
-    first_tri = np.cos(angle)[:, None] * frames[:, 0] + np.sin(angle)[:, None] * frames[:, 1]
-    first_tri[np.abs(u) == 0] = 0.0
-    first = np.ascontiguousarray(mesh.per_face(first_tri))
+    """The FieldResult of a raw solution w (per triangle). The unit field, the first direction per face, the energy
+    and the singularities come from one native pass (field_summary.hpp). details=False (live editing) skips the
+    energy (NaN) and the singularity search (None)."""
+    w = np.asarray(w, dtype=np.complex128)
+    u, first_tri, energy, sv, si = native().field_summary(ops, w, order, details)
+    first = first_tri if mesh.face_to_polygon is None else np.ascontiguousarray(mesh.per_face(first_tri))
     all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
-    energy = float(ops.energy(u, order)) if details else float("nan")
-    sings = None
-    if details:
-        sv, si = nat.singularity_indices(ops, u)
-        sings = [(int(v), float(i)) for v, i in zip(np.asarray(sv).tolist(), np.asarray(si).tolist())]
+    sings = [(int(v), float(i)) for v, i in zip(sv.tolist(), si.tolist())] if details else None
     tf = mesh.triangle_face
     fixed = sorted({int(tf[int(t)]) for t in sign_fixed})
     return FieldResult(
         n=n, order=order, align=align, strength=strength, weights=weights,
         representation=u, raw_solution=w,
         directions=first,
-        singularities=sings, energy=energy, seconds=time.perf_counter() - t0,
+        singularities=sings, energy=float(energy), seconds=time.perf_counter() - t0,
         sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, mode=mode, basis_size=basis_size, guides=guides,
         _all_directions=all_faces,
     )
@@ -394,9 +363,8 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
         solver.set_singularity(int(v), int(num))
 
     w = np.asarray(solver.solve(), dtype=np.complex128)
-    u = _normalize(w)
     lam = getattr(solver, "lambda_", None)
-    return _result(mesh, ops, u, w, n=n, order=order, align=align, strength=strength, weights=weights,
+    return _result(mesh, ops, w, n=n, order=order, align=align, strength=strength, weights=weights,
                    lam=None if lam is None else float(lam), sign_fixed=list(solver.sign_fixed_faces), t0=t0)
 
 
@@ -475,6 +443,5 @@ def smoothest_field(mesh: Mesh, n: int, weights: str = "geometric") -> FieldResu
     weights = _check_weights(weights)
     ops = native().FieldOperators(mesh.native, n, weights)
     w = np.asarray(native().smoothest_field(ops), dtype=np.complex128)
-    u = _normalize(w)
-    return _result(mesh, ops, u, w, n=n, order=1, align="none", strength=None, weights=weights, lam=None,
+    return _result(mesh, ops, w, n=n, order=1, align="none", strength=None, weights=weights, lam=None,
                    sign_fixed=[], t0=t0)

@@ -82,7 +82,8 @@ class HermitianFactor {
   /// One refinement step for a block of solutions X of V X = B (residual in long double): X += V^-1 (B - V X).
   /// Returns the size of the correction, max|dX| / max|X|.
   double refine_block(const Eigen::MatrixXcd& B, Eigen::MatrixXcd& X) const;
-  /// max |B - V X| / max |B| for one column, computed in double (a cheap accuracy probe).
+  /// max|B - V X| / max|B| for one column (largest real or imaginary part), computed in double (a cheap
+  /// accuracy probe).
   double relative_residual(const ComplexVector& b, const ComplexVector& x) const;
 
  private:
