@@ -161,7 +161,7 @@ double HermitianFactor::refine_block(const Eigen::MatrixXcd& B, Eigen::MatrixXcd
   return correction.cwiseAbs().maxCoeff() / std::max(X.cwiseAbs().maxCoeff(), 1e-300);
 }
 
-HermitianFactor::Forward HermitianFactor::forward(const std::vector<SparseColumn>& columns) const {
+HermitianFactor::Forward HermitianFactor::forward(const std::vector<SparseColumn>& columns, bool keep_h) const {
   const int k = static_cast<int>(columns.size());
   const int nsuper = static_cast<int>(factor_->nsuper);
   const int* super = static_cast<const int*>(factor_->super);
@@ -169,41 +169,70 @@ HermitianFactor::Forward HermitianFactor::forward(const std::vector<SparseColumn
   const int* px = static_cast<const int*>(factor_->px);
   const int* rows = static_cast<const int*>(factor_->s);
   const Complex* values = static_cast<const Complex*>(factor_->x);
-  Forward out{Eigen::MatrixXcd::Zero(n_, k), Eigen::MatrixXcd::Zero(k, k)};
-  // Which right-hand sides reach each supernode: those with an entry in it or in a descendant.
-  std::vector<std::vector<int>> active(nsuper);
-  std::vector<int> stamp(nsuper, -1);
-  for (int j = 0; j < k; ++j) {
+  Forward out{keep_h ? Eigen::MatrixXcd::Zero(n_, k) : Eigen::MatrixXcd(), Eigen::MatrixXcd::Zero(k, k)};
+  // Which right-hand sides reach each supernode: those with an entry in it or in a descendant (ascending, one
+  // list per supernode in `reach`, from reach_start[s]).
+  std::vector<int> stamp(nsuper, -1), reach_start(nsuper + 1, 0);
+  auto walk = [&](auto&& visit) {
+    std::fill(stamp.begin(), stamp.end(), -1);
+    for (int j = 0; j < k; ++j)
+      for (const auto& entry : columns[j])
+        for (int s = supernode_of_[inverse_perm_.at(entry.first)]; s >= 0 && stamp[s] != j; s = parent_[s])
+          stamp[s] = j, visit(s, j);
+  };
+  walk([&](int s, int) { ++reach_start[s + 1]; });
+  for (int s = 0; s < nsuper; ++s) reach_start[s + 1] += reach_start[s];
+  std::vector<int> reach(reach_start[nsuper]), fill(reach_start.begin(), reach_start.end() - 1);
+  walk([&](int s, int j) { reach[fill[s]++] = j; });
+  // h restricted to the supernodes: block s holds its own rows of the columns that reach it (nscol x a, column
+  // major), stored one after the other. Only these rows of h are ever non-zero.
+  std::vector<std::ptrdiff_t> offset(nsuper + 1, 0);
+  for (int s = 0; s < nsuper; ++s)
+    offset[s + 1] = offset[s] + static_cast<std::ptrdiff_t>(super[s + 1] - super[s]) * (reach_start[s + 1] - reach_start[s]);
+  std::vector<Complex> blocks(static_cast<std::size_t>(offset[nsuper]), Complex(0.0, 0.0));
+  auto slot = [&](int s, int j) {  // position of column j in the reach list of s (j reaches s)
+    return static_cast<int>(std::lower_bound(reach.begin() + reach_start[s], reach.begin() + reach_start[s + 1], j) -
+                            (reach.begin() + reach_start[s]));
+  };
+  for (int j = 0; j < k; ++j)
     for (const auto& [i, v] : columns[j]) {
-      const int row = inverse_perm_.at(i);
-      out.h(row, j) += v;
-      for (int s = supernode_of_[row]; s >= 0 && stamp[s] != j; s = parent_[s]) {
-        stamp[s] = j;
-        active[s].push_back(j);
-      }
+      const int row = inverse_perm_.at(i), s = supernode_of_[row];
+      const int nscol = super[s + 1] - super[s];
+      blocks[offset[s] + static_cast<std::ptrdiff_t>(slot(s, j)) * nscol + (row - super[s])] += v;
     }
-  }
   // Supernodes in increasing order (children before parents): solve the diagonal block, update the rows below.
-  Eigen::MatrixXcd X, below;
+  Eigen::MatrixXcd below, g;
+  std::vector<int> to_slot;
   for (int s = 0; s < nsuper; ++s) {
-    const std::vector<int>& J = active[s];
-    if (J.empty()) continue;
+    const int a = reach_start[s + 1] - reach_start[s];
+    if (a == 0) continue;
+    const int* J = reach.data() + reach_start[s];
     const int first = super[s], nscol = super[s + 1] - super[s], nsrow = pi[s + 1] - pi[s];
-    const int a = static_cast<int>(J.size());
     const Eigen::Map<const Eigen::MatrixXcd> block(values + px[s], nsrow, nscol);
-    X.resize(nscol, a);
-    for (int c = 0; c < a; ++c) X.col(c) = out.h.col(J[c]).segment(first, nscol);
-    block.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(X);
-    for (int c = 0; c < a; ++c) out.h.col(J[c]).segment(first, nscol) = X.col(c);
-    const Eigen::MatrixXcd g = X.adjoint() * X;  // these rows of h are final now
+    Eigen::Map<Eigen::MatrixXcd> X(blocks.data() + offset[s], nscol, a);
+    block.topRows(nscol).triangularView<Eigen::Lower>().solveInPlace(X);  // these rows of h are final now
+    g.noalias() = X.adjoint() * X;
     for (int c1 = 0; c1 < a; ++c1)
       for (int c2 = 0; c2 < a; ++c2) out.gram(J[c1], J[c2]) += g(c1, c2);
-    if (nsrow > nscol) {
-      below.noalias() = block.bottomRows(nsrow - nscol) * X;
-      for (int r = 0; r < nsrow - nscol; ++r) {
-        const int row = rows[pi[s] + nscol + r];
-        for (int c = 0; c < a; ++c) out.h(row, J[c]) -= below(r, c);
+    if (keep_h)
+      for (int c = 0; c < a; ++c) out.h.col(J[c]).segment(first, nscol) = X.col(c);
+    if (nsrow == nscol) continue;
+    below.noalias() = block.bottomRows(nsrow - nscol) * X;
+    // Row r below belongs to an ancestor t, which every column reaching s reaches too: map the slots of s to those
+    // of t (a merge of two ascending lists), once per run of rows in the same ancestor.
+    int t = -1, t_first = 0, t_nscol = 0;
+    for (int r = 0; r < nsrow - nscol; ++r) {
+      const int row = rows[pi[s] + nscol + r];
+      if (t < 0 || row < t_first || row >= t_first + t_nscol) {
+        t = supernode_of_[row], t_first = super[t], t_nscol = super[t + 1] - super[t];
+        to_slot.resize(a);
+        for (int c = 0, p = reach_start[t]; c < a; ++c) {
+          while (reach[p] != J[c]) ++p;
+          to_slot[c] = p - reach_start[t];
+        }
       }
+      Complex* target = blocks.data() + offset[t] + (row - t_first);
+      for (int c = 0; c < a; ++c) target[static_cast<std::ptrdiff_t>(to_slot[c]) * t_nscol] -= below(r, c);
     }
   }
   if (!out.gram.allFinite()) throw SolverError("forward substitution produced non-finite values");

@@ -75,7 +75,9 @@ class HermitianFactor {
     Eigen::MatrixXcd h;     ///< n x k, h_j = L^-1 P b_j (zero outside the supernodes b_j reaches)
     Eigen::MatrixXcd gram;  ///< k x k, gram(i, j) = h_i^H h_j = b_i^H V^-1 b_j
   };
-  Forward forward(const std::vector<SparseColumn>& columns) const;
+  /// `keep_h` = false: only the Gram matrix (h stays empty; h is then never stored whole, only on the supernodes
+  /// each column reaches).
+  Forward forward(const std::vector<SparseColumn>& columns, bool keep_h = true) const;
   /// P^T L^-H h for a block in the permuted space of forward(): V^-1 b_j column by column.
   Eigen::MatrixXcd backward(const Eigen::MatrixXcd& h) const;
 
