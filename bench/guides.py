@@ -24,11 +24,9 @@ Usage: python bench/guides.py [--quick] [--meshes a.obj,b.obj] [--repeats 7]
 """
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -142,9 +140,9 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
 
 def table(results: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | energy | curve move (live region) | comb stroke (live region) | weight change "
-             "(live region) | target change (global, no refactor) | weight change, global refactor | global "
-             "solve after a live edit |", "|" + "---|" * 9]
+    lines = common.table_header("mesh", "faces", "energy", "curve move (live region)", "comb stroke (live region)",
+                                "weight change (live region)", "target change (global, no refactor)",
+                                "weight change, global refactor", "global solve after a live edit")
     for r in results:
         for label in ("biharmonic", "harmonic"):
             x = r[label]
@@ -172,20 +170,17 @@ def targets(results: list[dict]) -> list[dict]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="rocker arm only, 3 repeats")
-    parser.add_argument("--meshes", help="comma-separated meshes of tests/data (default: bunny, armadillo)")
+    parser = common.mesh_parser(__doc__, "rocker arm only, 3 repeats",
+                                "comma-separated meshes of tests/data (default: bunny, armadillo)")
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--seed", type=int, default=11)
-    parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure_one(args.one, args.repeats, args.seed)))
         return 0
-    meshes = args.meshes.split(",") if args.meshes else (QUICK_MESHES if args.quick else MESHES)
     repeats = 3 if args.quick else args.repeats
-    results = [common.run_child(Path(__file__), ["--one", m, "--repeats", str(repeats), "--seed", str(args.seed)],
-                                f"guides {m}") for m in meshes]
+    results = common.run_children(Path(__file__), common.chosen_meshes(args, MESHES, QUICK_MESHES),
+                                  ["--repeats", str(repeats), "--seed", str(args.seed)], "guides")
     doc = {"meta": common.meta(quick=args.quick, repeats=repeats), "results": results, "targets": targets(results)}
     md = "\n".join(["# Live guide edits (exact session)", "", table(results), "",
                     "Medians of " + str(repeats) + " edits. total = guide computation + solve; live edits solve a "

@@ -127,10 +127,10 @@ def combined_rows(exact: dict | None, spec: dict | None, oneshot: dict | None = 
 
 def combined_table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | paper mesh (faces) | basis set-up k=500: wall (CPU) | paper | basis memory double \\ float32 "
-             "| reduced set-up & solve harm. \\ biharm. | paper | reduced update harm. \\ biharm. "
-             "| factorization harm. \\ biharm. | paper | unreduced solve harm. \\ biharm. | paper |",
-             "|" + "---|" * 13]
+    lines = common.table_header("mesh", "faces", "paper mesh (faces)", "basis set-up k=500: wall (CPU)", "paper",
+                                "basis memory double \\ float32", "reduced set-up & solve harm. \\ biharm.", "paper",
+                                "reduced update harm. \\ biharm.", "factorization harm. \\ biharm.", "paper",
+                                "unreduced solve harm. \\ biharm.", "paper")
     for r in rows:
         p = r.get("paper")
         pm = f"{p['paper_mesh']} ({p['faces']}){'' if p['match'] == 'same' else ', similar size only'}" if p else "-"

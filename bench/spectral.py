@@ -29,7 +29,6 @@ Usage: python bench/spectral.py [--quick] [--meshes a.obj,...] [--k 500] [--repe
 """
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import sys
@@ -189,10 +188,10 @@ def paper_cells(mesh: str) -> tuple[str, str]:
 
 def table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | basis k | basis set-up wall (CPU) | paper basis | memory double \\ float32 | peak RSS "
-             "| reduced set-up & solve harm. \\ biharm. | paper | update (re-aim + solve_coefficients) harm. \\ biharm. "
-             "| strength change | update + field U x | reconstruction U x double \\ float32 | load before/after basis |",
-             "|" + "---|" * 14]
+    lines = common.table_header("mesh", "faces", "basis k", "basis set-up wall (CPU)", "paper basis",
+                                "memory double \\ float32", "peak RSS", "reduced set-up & solve harm. \\ biharm.", "paper",
+                                "update (re-aim + solve_coefficients) harm. \\ biharm.", "strength change",
+                                "update + field U x", "reconstruction U x double \\ float32", "load before/after basis")
     for r in rows:
         h, b = r["harmonic"], r["biharmonic"]
         pb, pr = paper_cells(r["mesh"])
@@ -211,9 +210,10 @@ def table(rows: list[dict]) -> str:
 
 def precision_table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | energy | memory double \\ float32 | update double \\ float32 | reconstruction double \\ float32 "
-             "| float32 vs double: x | raw w | unit field (max angle) | reduced vs exact, unit field: double \\ float32 "
-             "| constraint residual double \\ float32 |", "|" + "---|" * 10]
+    lines = common.table_header("mesh", "energy", "memory double \\ float32", "update double \\ float32",
+                                "reconstruction double \\ float32", "float32 vs double: x", "raw w",
+                                "unit field (max angle)", "reduced vs exact, unit field: double \\ float32",
+                                "constraint residual double \\ float32")
     for r in rows:
         for label in ("harmonic", "biharmonic"):
             e = r[label]
@@ -291,15 +291,12 @@ def run(meshes: list[str], k: int, repeats: int, solve_repeats: int, seed: int =
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="small meshes, k = 100, few repeats")
-    parser.add_argument("--meshes")
+    parser = common.mesh_parser(__doc__, "small meshes, k = 100, few repeats")
     parser.add_argument("--k", type=int)
     parser.add_argument("--repeats", type=int)
     parser.add_argument("--solve-repeats", type=int)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--out", help="stem of the result files in bench/results (default spectral, spectral_quick)")
-    parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     k = args.k or (100 if args.quick else 500)
     repeats = args.repeats or (30 if args.quick else 200)
@@ -307,8 +304,7 @@ def main() -> int:
     if args.one:
         print(json.dumps(measure_one(args.one, k, repeats, solve_repeats, args.seed)))
         return 0
-    meshes = args.meshes.split(",") if args.meshes else (QUICK_MESHES if args.quick else MESHES)
-    doc = run(meshes, k, repeats, solve_repeats, args.seed, args.out or ("spectral_quick" if args.quick else "spectral"))
+    doc = run(common.chosen_meshes(args, MESHES, QUICK_MESHES), k, repeats, solve_repeats, args.seed, args.out or ("spectral_quick" if args.quick else "spectral"))
     print(json.dumps(doc, indent=2))
     print(markdown(doc["results"], doc["targets"], doc["meta"]))
     return 0
