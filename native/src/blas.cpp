@@ -11,6 +11,9 @@ extern "C" {
 void zgemm_(const char* ta, const char* tb, const int* m, const int* n, const int* k, const std::complex<double>* alpha,
             const std::complex<double>* a, const int* lda, const std::complex<double>* b, const int* ldb,
             const std::complex<double>* beta, std::complex<double>* c, const int* ldc);
+void ztrsm_(const char* side, const char* uplo, const char* trans, const char* diag, const int* m, const int* n,
+            const std::complex<double>* alpha, const std::complex<double>* a, const int* lda, std::complex<double>* b,
+            const int* ldb);
 void zgemv_(const char* t, const int* m, const int* n, const std::complex<double>* alpha, const std::complex<double>* a,
             const int* lda, const std::complex<double>* x, const int* incx, const std::complex<double>* beta,
             std::complex<double>* y, const int* incy);
@@ -39,6 +42,13 @@ void gemm(char ta, char tb, int m, int n, int k, std::complex<double> alpha, con
     return;
   }
   zgemm_(&ta, &tb, &m, &n, &k, &alpha, a, &lda, b, &ldb, &beta, c, &ldc);
+}
+
+void trsm_left(char uplo, char trans, char diag, int m, int n, std::complex<double> alpha, const std::complex<double>* a,
+               int lda, std::complex<double>* b, int ldb) {
+  if (m <= 0 || n <= 0) return;
+  const char side = 'L';
+  ztrsm_(&side, &uplo, &trans, &diag, &m, &n, &alpha, a, &lda, b, &ldb);
 }
 
 void gemv(char t, int m, int n, const std::complex<double>* a, const std::complex<double>* x, std::complex<double>* y) {

@@ -18,6 +18,12 @@ namespace nfield {
 void gemm(char ta, char tb, int m, int n, int k, std::complex<double> alpha, const std::complex<double>* a, int lda,
           const std::complex<double>* b, int ldb, std::complex<double> beta, std::complex<double>* c, int ldc);
 
+/// B = alpha op(A)^-1 B (ztrsm, side 'L'): A is m x m lower ('L') or upper ('U') triangular with leading dimension
+/// lda, op = 'N', 'T' or 'C', diag 'N' (or 'U' for a unit diagonal); B is m x n with leading dimension ldb.
+/// Does nothing for m <= 0 or n <= 0.
+void trsm_left(char uplo, char trans, char diag, int m, int n, std::complex<double> alpha, const std::complex<double>* a,
+               int lda, std::complex<double>* b, int ldb);
+
 /// y = op(A) x (zgemv / cgemv) for a column-major m x n matrix A (leading dimension m), op = 'N' or 'C'.
 void gemv(char t, int m, int n, const std::complex<double>* a, const std::complex<double>* x, std::complex<double>* y);
 void gemv(char t, int m, int n, const std::complex<float>* a, const std::complex<float>* x, std::complex<float>* y);
