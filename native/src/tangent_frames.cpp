@@ -21,11 +21,23 @@ TangentFrames::TangentFrames(const TriangleMesh& mesh)
 
 LeviCivitaConnection::LeviCivitaConnection(const TriangleMesh& mesh, const TangentFrames& frames) {
   const auto& P = mesh.positions();
-  angle_.reserve(mesh.dual_edges().size());
+  rotation_.reserve(mesh.dual_edges().size());
   for (const DualEdge& d : mesh.dual_edges()) {
     const Eigen::Vector3d e = P.row(d.vertex1) - P.row(d.vertex0);
-    angle_.push_back(frames.angle_of(d.face1, e) - frames.angle_of(d.face0, e));
+    const Complex c0 = frames.to_tangent(d.face0, e), c1 = frames.to_tangent(d.face1, e);
+    const Complex q = c1 * std::conj(c0);
+    const double size = std::abs(q);
+    rotation_.push_back(size > 0 ? q / size : Complex(1.0, 0.0));
   }
+}
+
+Complex LeviCivitaConnection::transport(int e, int n) const {
+  Complex power(1.0, 0.0), base = rotation_[e];
+  for (int k = n; k > 0; k >>= 1) {
+    if (k & 1) power *= base;
+    if (k > 1) base *= base;
+  }
+  return power / std::abs(power);
 }
 
 }  // namespace nfield
