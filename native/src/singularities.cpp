@@ -1,5 +1,6 @@
 #include "nfield/singularities.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -23,12 +24,31 @@ static double ring_holonomy_angle(const FieldOperators& ops, int vertex) {
 
 namespace {
 
+/// arg(z) in (-pi, pi] to within 2e-6 rad (a least-squares odd polynomial of degree 11 for atan on [0, 1], max error
+/// 1.8e-6, then the octant), and exactly (atan2) within 1e-3 of the cut at +-pi, so that the result is on the same
+/// side of the cut as atan2's. An index only needs the sum of a ring's turnings to within pi of the exact one (it is
+/// rounded to a multiple of 2 pi): 2e-6 per step leaves that margin for rings of any size, so the indices are those
+/// of atan2, at a fraction of its cost.
+double turning_angle(Complex z) {
+  const double x = z.real(), y = z.imag(), ax = std::abs(x), ay = std::abs(y);
+  const double big = std::max(ax, ay);
+  if (!(big > 0) || !std::isfinite(big)) return std::atan2(y, x);
+  const double a = std::min(ax, ay) / big, a2 = a * a;
+  double t = a * (0.9999798316 +
+                  a2 * (-0.3326554195 + a2 * (0.1936698883 + a2 * (-0.1166499788 + a2 * (0.05282219489 -
+                                                                                    0.01176997409 * a2)))));
+  if (ay > ax) t = M_PI / 2 - t;
+  if (x < 0) t = M_PI - t;
+  if (t > M_PI - 1e-3) return std::atan2(y, x);
+  return std::signbit(y) ? -t : t;
+}
+
 /// The turning psi_e in (-pi, pi] of the field across dual edge e, face0 -> face1: the signed angle from the
-/// carried value r_e z_0 to z_1. Crossed the other way (face1 -> face0) it is exactly -psi_e (atan2 is odd in its
-/// first argument, signed zeros included), so every ring that crosses e uses this one value.
+/// carried value r_e z_0 to z_1. Crossed the other way (face1 -> face0) it is -psi_e (odd in Im, signed zeros
+/// included), so every ring that crosses e uses this one value.
 double edge_turning(const FieldOperators& ops, const ComplexVector& field, int e) {
   const DualEdge& d = ops.mesh().dual_edges()[e];
-  return std::arg(field[d.face1] * std::conj(ops.transport(e) * field[d.face0]));
+  return turning_angle(field[d.face1] * std::conj(ops.transport(e) * field[d.face0]));
 }
 
 bool usable(Complex z) { return z != 0.0 && std::isfinite(z.real()) && std::isfinite(z.imag()); }

@@ -255,7 +255,7 @@ def _result(mesh: Mesh, ops, w, *, n, order, align, strength, weights, lam, sign
     energy (NaN) and the singularity search (None)."""
     w = np.asarray(w, dtype=np.complex128)
     u, first_tri, energy, sv, si = native().field_summary(ops, w, order, details)
-    first = first_tri if mesh.face_to_polygon is None else np.ascontiguousarray(mesh.per_face(first_tri))
+    first = np.ascontiguousarray(mesh.per_face(first_tri)) if mesh.has_polygons else first_tri  # one row per face
     all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
     sings = [(int(v), float(i)) for v, i in zip(sv.tolist(), si.tolist())] if details else None
     tf = mesh.triangle_face
