@@ -224,6 +224,7 @@ void ExactSolver::check_rows_hold(const ComplexVector& field) const {
   // there every value is rounding noise of the field and the rows hold absolutely.
   // Only rings that hold a face constraint can be contradictory: a singularity's own rows are homogeneous
   // (z = 0 satisfies them), so without a face constraint on the ring a violation is inaccuracy, not conflict.
+  if (constraints_.singularity_rows.empty()) return;
   const double floor = 1e-9 * (field.size() ? field.cwiseAbs().maxCoeff() : 0.0);
   std::set<std::string> names;
   for (const auto& [vertex, rows] : constraints_.singularity_rows) {
