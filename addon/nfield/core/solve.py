@@ -176,37 +176,51 @@ def _sort_constraints(constraints: Iterable, vector_constraints: Iterable, singu
 
 
 def _face_vectors(mesh: Mesh, items: Sequence, attr: str, label: str):
-    """Map input faces to triangles and check the 3D vectors: in range, active, non-zero, tangent."""
-    active = np.asarray(mesh.native.face_active, dtype=bool)
-    normals = np.asarray(mesh.native.face_normals, dtype=np.float64)
-    tris = np.empty(len(items), dtype=np.int64)
-    vecs = np.empty((len(items), 3), dtype=np.float64)
-    for k, c in enumerate(items):
-        t = mesh.face_triangle(c.face)
-        if not active[t]:
+    """Map input faces to triangles and check the 3D vectors: in range, active, non-zero, tangent. All items are
+    checked at once; the error names the first item that fails, with the first check it fails in that order."""
+    k = len(items)
+    tris = np.zeros(k, dtype=np.int64)
+    if k == 0:
+        return tris, np.empty((0, 3), dtype=np.float64)
+    face_errors: dict[int, ValueError] = {}
+    for i, c in enumerate(items):
+        try:
+            tris[i] = mesh.face_triangle(c.face)
+        except ValueError as exc:
+            face_errors[i] = exc
+    d = np.array([np.asarray(getattr(c, attr), dtype=np.float64) for c in items]).reshape(k, 3)
+    active = np.asarray(mesh.native.face_active, dtype=bool)[tris]
+    normals = np.asarray(mesh.native.face_normals, dtype=np.float64)[tris]
+    # Tangency is judged on d / max|d_i|: the norm of d itself under- or overflows for tiny (1e-300) or huge
+    # (1e308) components, which are valid directions.
+    big = np.abs(d).max(axis=1)
+    zero = big == 0.0
+    unit = d / np.where(zero, 1.0, big)[:, None]
+    length = np.linalg.norm(unit, axis=1)
+    proj = unit - normals * (unit * normals).sum(axis=1)[:, None]
+    parallel = np.linalg.norm(proj, axis=1) < TANGENT_TOLERANCE * length
+    overflow = np.zeros(k, dtype=bool) if attr == "direction" else ~np.isfinite(big * length)
+    bad = ~active | zero | parallel | overflow
+    bad[list(face_errors)] = True
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        c, t = items[i], int(tris[i])
+        if i in face_errors:
+            raise face_errors[i]
+        if not active[i]:
             what = f"face {c.face}" if not mesh.has_polygons else f"face {c.face} (triangle {t})"
             raise ValueError(f"{label} on {what}: the face is excluded from the field (degenerate: zero area, "
                              f"repeated vertex, needle or duplicate face)")
-        d = np.asarray(getattr(c, attr), dtype=np.float64)
-        # Tangency is judged on d / max|d_i|: the norm of d itself under- or overflows for tiny (1e-300) or
-        # huge (1e308) components, which are valid directions.
-        big = float(np.abs(d).max())
-        if big == 0.0:
+        if zero[i]:
             raise ValueError(f"{label} on face {c.face}: the {attr} is the zero vector")
-        unit = d / big
-        length = float(np.linalg.norm(unit))
-        proj = unit - normals[t] * float(unit @ normals[t])
-        if float(np.linalg.norm(proj)) < TANGENT_TOLERANCE * length:
-            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is parallel to the face "
+        if parallel[i]:
+            raise ValueError(f"{label} on face {c.face}: the {attr} {d[i].tolist()} is parallel to the face "
                              f"normal (it has no tangent component)")
-        if attr == "direction":
-            d = unit / length  # only the direction counts: keep the native projection in range
-        elif not math.isfinite(big * length):
-            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is too long (its length "
-                             f"overflows a double)")
-        tris[k] = t
-        vecs[k] = d
-    return tris, vecs
+        raise ValueError(f"{label} on face {c.face}: the {attr} {d[i].tolist()} is too long (its length "
+                         f"overflows a double)")
+    if attr == "direction":
+        d = unit / length[:, None]  # only the direction counts: keep the native projection in range
+    return tris, d
 
 
 def _check_duplicates(dirs, vecs, sings) -> None:
