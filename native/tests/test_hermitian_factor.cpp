@@ -102,10 +102,13 @@ void solves_and_residual(const Problem& p) {
   const HermitianFactor factor(p.V, "test system", "");
   const Eigen::MatrixXcd B = dense_block(test_columns(p), N);
   const double beta = 20 * N * kEps;
-  const ComplexVector b = B.col(6);
+  const ComplexVector b = B.col(6);  // sparse: the forward substitution only on the supernodes it reaches
   const ComplexVector x = factor.solve(b);
   const ComplexVector reference = p.inverse * b;
   CHECK_LE((x - reference).norm(), p.kappa * beta * reference.norm());
+  const ComplexVector dense_b = B * ComplexVector::Ones(B.cols()) + ComplexVector::Constant(N, Complex(0.25, -0.5));
+  CHECK_LE((factor.solve(dense_b) - p.inverse * dense_b).norm(), p.kappa * beta * (p.inverse * dense_b).norm());
+  CHECK(factor.solve(ComplexVector::Zero(N)).isZero(0.0));
   const Eigen::MatrixXcd X = factor.solve_block(B);
   CHECK_LE((X - p.inverse * B).norm(), p.kappa * beta * (p.inverse * B).norm());
   // relative_residual: max over entries of the largest real or imaginary part of b - V x, over that of b.

@@ -2,7 +2,8 @@
 // supernodal; P the fill-reducing permutation) and the solves the spline solver needs:
 //
 //   solve(b)              x = V^-1 b, refined until accurate (see below). One forward and one backward
-//                         substitution per step.
+//                         substitution per step; for a sparse b the first forward one only on the supernodes b
+//                         reaches (forward() below).
 //   solve_block(B)        V^-1 B for a dense block: one blocked CHOLMOD solve (BLAS 3 on every supernode).
 //   forward(columns)      h_j = L^-1 P b_j for sparse b_j, restricted to the supernodes b_j reaches in the
 //                         elimination tree (the path from b_j's supernodes to the root: 5-16% of L per column
@@ -45,6 +46,8 @@ class HermitianFactor {
   static constexpr double kRefineCondition = 1e6;    ///< condition_estimate() above which solve() refines
   static constexpr double kConverged = 1e-10;        ///< max|correction| / max|x| at which refinement stops
   static constexpr int kMaxRefinements = 4;
+  /// solve() substitutes forward only on the supernodes b reaches when b has fewer than n / kSparseFraction entries.
+  static constexpr int kSparseFraction = 16;
 
   /// Analyzes and factors `matrix` (both triangles stored; the lower one is read). `what` names the system
   /// in messages ("the factorization of the order-2 system (69451 faces)"), `advice` says what needs less
@@ -90,6 +93,8 @@ class HermitianFactor {
 
  private:
   Eigen::MatrixXcd cholmod_solve_dense(int system, const Eigen::MatrixXcd& B) const;
+  /// V^-1 b by one forward and one backward substitution (forward() for a sparse b, see kSparseFraction).
+  ComplexVector unrefined_solve(const ComplexVector& b) const;
   /// B - V X with every product accumulated in long double, rounded to double at the end.
   Eigen::MatrixXcd extended_residual(const Eigen::MatrixXcd& B, const Eigen::MatrixXcd& X) const;
 
