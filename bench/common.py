@@ -172,9 +172,10 @@ def fmt_ms(seconds: float | None) -> str:
     return f"{int(seconds // 60)}m{int(seconds % 60):02d}s"
 
 
-def table_header(*columns: str) -> list[str]:
-    """The first two lines of a markdown table with these column titles."""
-    return ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+def markdown_table(columns: list[str], rows: list[list[str]]) -> str:
+    """A markdown table: the column titles, then one line per row of cells."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    return "\n".join(lines + ["| " + " | ".join(cells) + " |" for cells in rows])
 
 
 def mesh_parser(doc: str, quick_help: str, meshes_help: str = "comma-separated meshes of tests/data"):

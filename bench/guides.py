@@ -140,21 +140,19 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
 
 def table(results: list[dict]) -> str:
     f = common.fmt_ms
-    lines = common.table_header("mesh", "faces", "energy", "curve move (live region)", "comb stroke (live region)",
-                                "weight change (live region)", "target change (global, no refactor)",
-                                "weight change, global refactor", "global solve after a live edit")
-    for r in results:
-        for label in ("biharmonic", "harmonic"):
-            x = r[label]
 
-            def cell(key):
-                e = x[key]
-                reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
-                return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
-            lines.append(f"| {r['mesh']} | {r['faces']:,} | {label} | {cell('curve_move')} | {cell('comb_stroke')} | "
-                         f"{cell('weight_change')} | {cell('target_change')} | {f(x['weight_change_global']['total_s'])} "
-                         f"| {f(x['curve_move']['global_after_s'])} |")
-    return "\n".join(lines)
+    def cell(x, key):
+        e = x[key]
+        reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
+        return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
+    columns = ["mesh", "faces", "energy", "curve move (live region)", "comb stroke (live region)",
+               "weight change (live region)", "target change (global, no refactor)", "weight change, global refactor",
+               "global solve after a live edit"]
+    rows = [[r["mesh"], f"{r['faces']:,}", label, cell(r[label], "curve_move"), cell(r[label], "comb_stroke"),
+             cell(r[label], "weight_change"), cell(r[label], "target_change"),
+             f(r[label]["weight_change_global"]["total_s"]), f(r[label]["curve_move"]["global_after_s"])]
+            for r in results for label in ("biharmonic", "harmonic")]
+    return common.markdown_table(columns, rows)
 
 
 def targets(results: list[dict]) -> list[dict]:

@@ -116,16 +116,13 @@ def measure_one(mesh_name: str, repeats: int) -> dict:
 
 def table(results: list[dict]) -> str:
     f = common.fmt_ms
-    lines = common.table_header("mesh", "faces", "n", "m", "kind", "factorization", "operators",
-                                "one-shot `core.solve`", "ratio wall (CPU)", "target", "live first solve (30 new)")
-    for r in results:
-        for x in r["rows"]:
-            target = f"<= {TARGET_RATIO[x['kind']]}" if r["mesh"] in TARGET_MESHES else "-"
-            lines.append(f"| {r['mesh']} | {r['faces']} | {x['n']} | {x['order']} | {x['kind']} | "
-                         f"{f(x['factorization_s'])} | {f(x.get('operators_s'))} | {f(x['one_shot_s'])} | "
-                         f"{x['ratio']:.2f} ({x.get('ratio_cpu', float('nan')):.2f}) | {target} | "
-                         f"{f(x['live_first_solve_s'])} |")
-    return "\n".join(lines)
+    columns = ["mesh", "faces", "n", "m", "kind", "factorization", "operators", "one-shot `core.solve`",
+               "ratio wall (CPU)", "target", "live first solve (30 new)"]
+    rows = [[r["mesh"], str(r["faces"]), str(x["n"]), str(x["order"]), x["kind"], f(x["factorization_s"]),
+             f(x.get("operators_s")), f(x["one_shot_s"]), f"{x['ratio']:.2f} ({x.get('ratio_cpu', float('nan')):.2f})",
+             f"<= {TARGET_RATIO[x['kind']]}" if r["mesh"] in TARGET_MESHES else "-", f(x["live_first_solve_s"])]
+            for r in results for x in r["rows"]]
+    return common.markdown_table(columns, rows)
 
 
 def targets(results: list[dict]) -> list[dict]:

@@ -188,43 +188,41 @@ def paper_cells(mesh: str) -> tuple[str, str]:
 
 def table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = common.table_header("mesh", "faces", "basis k", "basis set-up wall (CPU)", "paper basis",
-                                "memory double \\ float32", "peak RSS", "reduced set-up & solve harm. \\ biharm.", "paper",
-                                "update (re-aim + solve_coefficients) harm. \\ biharm.", "strength change",
-                                "update + field U x", "reconstruction U x double \\ float32", "load before/after basis")
+    columns = ["mesh", "faces", "basis k", "basis set-up wall (CPU)", "paper basis", "memory double \\ float32",
+               "peak RSS", "reduced set-up & solve harm. \\ biharm.", "paper",
+               "update (re-aim + solve_coefficients) harm. \\ biharm.", "strength change", "update + field U x",
+               "reconstruction U x double \\ float32", "load before/after basis"]
+    cells = []
     for r in rows:
-        h, b = r["harmonic"], r["biharmonic"]
+        h, b = r["harmonic"]["double"], r["biharmonic"]["double"]
         pb, pr = paper_cells(r["mesh"])
-        lines.append(
-            f"| {r['mesh']} | {r['faces']} | {r['k']} | {f(r['basis']['wall_s'])} ({f(r['basis']['cpu_s'])}) | {pb} | "
-            f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])} | "
-            f"{r['peak_rss_mb']:.0f} MB | "
-            f"{f(h['double']['setup_and_first_solve_s'])} \\ {f(b['double']['setup_and_first_solve_s'])} | {pr} | "
-            f"{f(h['double']['update_s'])} \\ {f(b['double']['update_s'])} | "
-            f"{f(h['double']['strength_change_s'])} \\ {f(b['double']['strength_change_s'])} | "
-            f"{f(h['double']['update_and_field_s'])} \\ {f(b['double']['update_and_field_s'])} | "
-            f"{f(b['double']['reconstruction_s'])} \\ {f(b['single']['reconstruction_s'])} | "
-            f"{r['loadavg_before_basis'][0]:.1f} / {r['loadavg_after_basis'][0]:.1f} |")
-    return "\n".join(lines)
+        cells.append([
+            r["mesh"], str(r["faces"]), str(r["k"]), f"{f(r['basis']['wall_s'])} ({f(r['basis']['cpu_s'])})", pb,
+            f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])}",
+            f"{r['peak_rss_mb']:.0f} MB", f"{f(h['setup_and_first_solve_s'])} \\ {f(b['setup_and_first_solve_s'])}", pr,
+            f"{f(h['update_s'])} \\ {f(b['update_s'])}", f"{f(h['strength_change_s'])} \\ {f(b['strength_change_s'])}",
+            f"{f(h['update_and_field_s'])} \\ {f(b['update_and_field_s'])}",
+            f"{f(b['reconstruction_s'])} \\ {f(r['biharmonic']['single']['reconstruction_s'])}",
+            f"{r['loadavg_before_basis'][0]:.1f} / {r['loadavg_after_basis'][0]:.1f}"])
+    return common.markdown_table(columns, cells)
 
 
 def precision_table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = common.table_header("mesh", "energy", "memory double \\ float32", "update double \\ float32",
-                                "reconstruction double \\ float32", "float32 vs double: x", "raw w",
-                                "unit field (max angle)", "reduced vs exact, unit field: double \\ float32",
-                                "constraint residual double \\ float32")
+    columns = ["mesh", "energy", "memory double \\ float32", "update double \\ float32",
+               "reconstruction double \\ float32", "float32 vs double: x", "raw w", "unit field (max angle)",
+               "reduced vs exact, unit field: double \\ float32", "constraint residual double \\ float32"]
+    cells = []
     for r in rows:
         for label in ("harmonic", "biharmonic"):
-            e = r[label]
-            d, s, c = e["double"], e["single"], e["single_vs_double"]
-            lines.append(
-                f"| {r['mesh']} | {label} | {mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])} | "
-                f"{f(d['update_s'])} \\ {f(s['update_s'])} | {f(d['reconstruction_s'])} \\ {f(s['reconstruction_s'])} | "
-                f"{c['coefficients']:.1e} | {c['raw']:.1e} | {c['unit']:.1e} ({c['unit_max_angle_deg']:.2g} deg) | "
-                f"{100 * d['vs_exact_unit']:.2f} % \\ {100 * s['vs_exact_unit']:.2f} % | "
-                f"{d['constraint_residual']:.0e} \\ {s['constraint_residual']:.0e} |")
-    return "\n".join(lines)
+            d, s, c = r[label]["double"], r[label]["single"], r[label]["single_vs_double"]
+            cells.append([
+                r["mesh"], label, f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])}",
+                f"{f(d['update_s'])} \\ {f(s['update_s'])}", f"{f(d['reconstruction_s'])} \\ {f(s['reconstruction_s'])}",
+                f"{c['coefficients']:.1e}", f"{c['raw']:.1e}", f"{c['unit']:.1e} ({c['unit_max_angle_deg']:.2g} deg)",
+                f"{100 * d['vs_exact_unit']:.2f} % \\ {100 * s['vs_exact_unit']:.2f} %",
+                f"{d['constraint_residual']:.0e} \\ {s['constraint_residual']:.0e}"])
+    return common.markdown_table(columns, cells)
 
 
 def target_check(rows: list[dict]) -> list[dict]:

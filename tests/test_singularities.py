@@ -9,25 +9,15 @@ double-precision angle operations is < 1e-13, so 1e-9 is a safe bound that any w
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import meshgen as mg
-from conftest import reference_indices
+from conftest import core_mesh, reference_indices
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
-
-DATA = Path(__file__).parent / "data"
-
-
-def _data_mesh(name):
-    p = DATA / name
-    if not p.exists():
-        pytest.skip(f"test mesh {p} is missing (tests/data not populated)")
-    return core.Mesh.from_file(p)
 
 
 def _mesh(VF):
@@ -73,7 +63,7 @@ def test_poincare_hopf_synthetic(name, n):
 @pytest.mark.parametrize("fname,chi,ns", [("eight.off", -2, (1, 2, 4)), ("fertility.off", -6, (4,)),
                                           ("sphere.obj", 2, (1, 2, 4))])
 def test_poincare_hopf_data(fname, chi, ns):
-    mesh = _data_mesh(fname)
+    mesh = core_mesh(fname)
     assert mesh.report["euler_characteristic"] == chi
     for n in ns:
         t = time.perf_counter()

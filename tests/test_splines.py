@@ -20,32 +20,22 @@ Dense references: the KKT system is solved in double and refined with residuals 
 """
 from __future__ import annotations
 
-import functools
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import meshgen as mg
+from conftest import core_mesh
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 
-DATA = Path(__file__).parent / "data"
 SPIKE = 100.0  # s_f = SPIKE * s_0 * mean area / A_f (spline_solver.hpp)
 # Dense comparison (relative L2): the native result and the refined reference are both accurate far beyond
 # kappa eps (n-vector splines measured 1e-16 to 1e-10 at orders 1-4, the worst on the flat grid at order 4,
 # cond(E_ff) = 3e10); 1e-8 is the issue's target and leaves orders of margin.
 DENSE_TOL = 1e-8
-
-
-@functools.lru_cache(maxsize=None)
-def _data_mesh(name):
-    p = DATA / name
-    if not p.exists():
-        pytest.skip(f"test mesh {p} is missing (tests/data not populated)")
-    return core.Mesh.from_file(p)
 
 
 def _mesh(VF):
@@ -74,7 +64,7 @@ def test_direction_constraints_exact_and_positive(name, order):
     representation space is < 1e-10 (|<w, J d>| / |w| after normalising d; the constraint row is
     solved by a dense LDLT of the Schur complement, so it holds to rounding, ~1e-13 relative),
     w_f points along +d (<w_f, d_f> > 0), and one of the n output directions is the projected d."""
-    mesh = _data_mesh(name)
+    mesh = core_mesh(name)
     faces, dirs = _random_tangent_constraints(mesh, 20, seed=order)
     cons = [core.DirectionConstraint(int(f), tuple(d)) for f, d in zip(faces, dirs)]
     report = []

@@ -271,18 +271,18 @@ class DesignSession(SessionGuides, SessionLive):
     # ------------------------------------------------------------------ constraints
     def set_direction(self, face: int, direction) -> None:
         """Add or re-aim a hard direction constraint (3D vector, projected onto the face)."""
-        c = DirectionConstraint(int(face), tuple(float(x) for x in np.asarray(direction, dtype=float).ravel()))
-        self._check_face_constraint(c, "direction", "direction constraint")
-        self._vecs.pop(c.face, None)
-        self._dirs[c.face] = np.asarray(c.direction, dtype=np.float64)
-        self._dirty = True
+        self._set_face_constraint(DirectionConstraint, face, direction, "direction", self._dirs, self._vecs)
 
     def set_vector(self, face: int, vector) -> None:
         """Add or change a hard n-vector constraint (3D vector; its tangent length is the magnitude)."""
-        c = VectorConstraint(int(face), tuple(float(x) for x in np.asarray(vector, dtype=float).ravel()))
-        self._check_face_constraint(c, "vector", "vector constraint")
-        self._dirs.pop(c.face, None)
-        self._vecs[c.face] = np.asarray(c.vector, dtype=np.float64)
+        self._set_face_constraint(VectorConstraint, face, vector, "vector", self._vecs, self._dirs)
+
+    def _set_face_constraint(self, kind, face: int, value, attr: str, into: dict, other: dict) -> None:
+        """Checks the constraint, then stores its 3D vector in `into` (replacing one of the other kind)."""
+        c = kind(int(face), tuple(float(x) for x in np.asarray(value, dtype=float).ravel()))
+        self._check_face_constraint(c, attr, f"{attr} constraint")
+        other.pop(c.face, None)
+        into[c.face] = np.asarray(getattr(c, attr), dtype=np.float64)
         self._dirty = True
 
     def remove(self, face: int) -> None:

@@ -13,6 +13,7 @@ from .constraints import (
     DirectionConstraint,
     SingularityConstraint,
     VectorConstraint,
+    _real,
     constraint_from_dict,
 )
 from .mesh import Mesh, _jsonable
@@ -130,15 +131,18 @@ def _check_weights(weights: Any) -> str:
 
 def _check_strength(strength: Any) -> float:
     must = f"strength must be a finite number in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}]"
-    if isinstance(strength, bool):
-        raise ValueError(f"{must}, got {strength!r}")
-    try:
-        s = float(strength)
-    except (TypeError, ValueError):
-        raise ValueError(f"{must}, got {strength!r}") from None
+    s = _real(strength, must)
     if not (math.isfinite(s) and MIN_STRENGTH <= s <= MAX_STRENGTH):
         raise ValueError(f"{must} (got {strength!r})")
     return s
+
+
+def _check_alignment_field(align: str, alignment_field: Any) -> None:
+    """An alignment field is given exactly when align is "field"."""
+    if align == "field" and alignment_field is None:
+        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
+    if align != "field" and alignment_field is not None:
+        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
 
 
 def _check_mesh(mesh: Any) -> Mesh:
@@ -327,10 +331,7 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
     weights = _check_weights(weights)
     if align not in ALIGN_CHOICES:
         raise ValueError(f"unknown align {align!r} (expected one of {', '.join(ALIGN_CHOICES)})")
-    if align == "field" and alignment_field is None:
-        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
-    if align != "field" and alignment_field is not None:
-        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
+    _check_alignment_field(align, alignment_field)
 
     dirs, vecs, sings = _sort_constraints(constraints, vector_constraints, singularities)
     _check_duplicates(dirs, vecs, sings)
@@ -389,10 +390,7 @@ def _solve_guided(mesh: Mesh, *, n, order, align, strength, constraints, vector_
 
     t0 = time.perf_counter()
     mesh = _check_mesh(mesh)
-    if align == "field" and alignment_field is None:
-        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
-    if align != "field" and alignment_field is not None:
-        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
+    _check_alignment_field(align, alignment_field)
     dirs, vecs, sings = _sort_constraints(constraints, vector_constraints, singularities)
     _check_duplicates(dirs, vecs, sings)
     s = DesignSession(mesh, n=n, order=order, align=align, strength=strength, weights=weights,
