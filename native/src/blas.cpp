@@ -1,6 +1,7 @@
 #include "nfield/blas.hpp"
 
 #include <cstddef>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -86,15 +87,28 @@ void hermitian_eigen(Eigen::MatrixXcd& a, Eigen::VectorXd& w) {
   if (info != 0) throw SolverError("dense Hermitian eigen solver (zheevd) failed, info=" + std::to_string(info));
 }
 
+namespace {
+// Guards may live in several threads at once (a basis computed by a worker thread while the caller solves): the
+// first one sets OpenBLAS single-threaded, the last one restores the count it found.
+std::mutex blas_threads_mutex;
+int guards_alive = 0;
+int threads_before = 0;
+}  // namespace
+
 SingleThreadedBlas::SingleThreadedBlas() {
-  if (openblas_get_num_threads != nullptr && openblas_set_num_threads != nullptr) {
-    saved_ = openblas_get_num_threads();
-    if (saved_ > 1) openblas_set_num_threads(1);
+  if (openblas_get_num_threads == nullptr || openblas_set_num_threads == nullptr) return;
+  const std::lock_guard<std::mutex> lock(blas_threads_mutex);
+  active_ = true;
+  if (guards_alive++ == 0) {
+    threads_before = openblas_get_num_threads();
+    if (threads_before > 1) openblas_set_num_threads(1);
   }
 }
 
 SingleThreadedBlas::~SingleThreadedBlas() {
-  if (saved_ > 1) openblas_set_num_threads(saved_);
+  if (!active_) return;
+  const std::lock_guard<std::mutex> lock(blas_threads_mutex);
+  if (--guards_alive == 0 && threads_before > 1) openblas_set_num_threads(threads_before);
 }
 
 }  // namespace nfield

@@ -35,8 +35,10 @@ void hermitian_eigen(Eigen::MatrixXcd& a, Eigen::VectorXd& w);
 
 /// Single-threaded OpenBLAS for the lifetime of the object (no effect with other BLAS implementations),
 /// for code that runs its own threads: OpenBLAS threads on top of them oversubscribe the cores (and spin),
-/// which costs far more than it gains on the thin matrix products of the Lanczos iteration. The previous
-/// thread count is restored on destruction.
+/// which costs far more than it gains on the thin matrix products of the Lanczos iteration; and for the
+/// solves after a factorization, whose BLAS calls are too small to share (one column, or a few dozen on
+/// the supernodes a constraint reaches). Guards may overlap in several threads: the thread count found by
+/// the first is restored when the last one is destroyed.
 class SingleThreadedBlas {
  public:
   SingleThreadedBlas();
@@ -45,7 +47,7 @@ class SingleThreadedBlas {
   SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
 
  private:
-  int saved_ = 0;
+  bool active_ = false;  ///< OpenBLAS is there and this guard counts
 };
 
 }  // namespace nfield
