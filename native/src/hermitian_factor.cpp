@@ -264,7 +264,9 @@ HermitianFactor::Forward HermitianFactor::forward(const std::vector<SparseColumn
 
 Eigen::MatrixXcd HermitianFactor::backward(const Eigen::MatrixXcd& h) const {
   const Eigen::MatrixXcd y = cholmod_solve_dense(CHOLMOD_Lt, h);
-  Eigen::MatrixXcd x = cholmod_solve_dense(CHOLMOD_Pt, y);
+  Eigen::MatrixXcd x(n_, y.cols());  // P^T y: row i of x is row inverse_perm_[i] of y
+  for (Eigen::Index c = 0; c < y.cols(); ++c)
+    for (int i = 0; i < n_; ++i) x(i, c) = y(inverse_perm_[i], c);
   if (!x.allFinite()) throw SolverError("back-substitution produced non-finite values");
   return x;
 }

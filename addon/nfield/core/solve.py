@@ -341,7 +341,6 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
 
     nat = native()
     ops = nat.FieldOperators(mesh.native, n, weights)
-    active = np.asarray(mesh.native.face_active, dtype=bool)
 
     alignment = None
     if align in ("curvature-max", "curvature-min"):
@@ -355,7 +354,7 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
             bad = int(np.flatnonzero(~np.isfinite(af).all(axis=1))[0])
             raise ValueError(f"alignment_field has a non-finite vector at face {bad}")
         per_tri = af[mesh.triangle_face]
-        idx = np.flatnonzero(active)
+        idx = np.flatnonzero(np.asarray(mesh.native.face_active, dtype=bool))
         alignment = np.zeros(mesh.num_triangles, dtype=np.complex128)
         alignment[idx] = np.asarray(ops.tangent_to_representation(idx, np.ascontiguousarray(per_tri[idx])))
 
