@@ -105,7 +105,9 @@ def measure_one(mesh_name: str, repeats: int) -> dict:
                      "ratio_cpu": statistics.median(ratio_cpu),
                      "live_first_solve_s": statistics.median(live),
                      "spread": {"ratio": [min(ratio), max(ratio)], "ratio_cpu": [min(ratio_cpu), max(ratio_cpu)],
-                                "live_first_solve_s": [min(live), max(live)]}})
+                                "live_first_solve_s": [min(live), max(live)]},
+                     "samples": {"ratio": ratio, "ratio_cpu": ratio_cpu, "factorization_s": fact,
+                                 "one_shot_s": one_shot, "live_first_solve_s": live}})
         print(f"{mesh_name} n={n} m={m} {kind}: factorization {common.fmt_ms(rows[-1]['factorization_s'])}, one-shot "
               f"{common.fmt_ms(rows[-1]['one_shot_s'])}, ratio {rows[-1]['ratio']:.2f} (CPU "
               f"{rows[-1]['ratio_cpu']:.2f}), live first solve "
