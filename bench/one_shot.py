@@ -142,8 +142,9 @@ def run(meshes: list[str], repeats: int, stem: str = "one_shot") -> dict:
     results = common.run_children(Path(__file__), meshes, ["--repeats", str(repeats)], "one-shot")
     m = common.meta(repeats=repeats, setting=f"{NUM_CONSTRAINTS} random hard constraints, no alignment, strength 1")
     doc = {"meta": m, "results": results, "targets": targets(results)}
-    common.write_results(stem, doc, "# One-shot solve and live first solve\n\n" + m["setting"] +
-                         f"; medians of {repeats} repeats; {m['date']}, load {m['loadavg']}.\n\n" + table(results) + "\n")
+    md = (f"# One-shot solve and live first solve\n\n{m['setting']}; medians of {repeats} repeats; {m['date']}, load "
+          f"{m['loadavg']}.\n\n{table(results)}\n")
+    common.write_results(stem, doc, md)
     return doc
 
 

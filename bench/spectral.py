@@ -218,7 +218,8 @@ def precision_table(rows: list[dict]) -> str:
             d, s, c = r[label]["double"], r[label]["single"], r[label]["single_vs_double"]
             cells.append([
                 r["mesh"], label, f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])}",
-                f"{f(d['update_s'])} \\ {f(s['update_s'])}", f"{f(d['reconstruction_s'])} \\ {f(s['reconstruction_s'])}",
+                f"{f(d['update_s'])} \\ {f(s['update_s'])}",
+                f"{f(d['reconstruction_s'])} \\ {f(s['reconstruction_s'])}",
                 f"{c['coefficients']:.1e}", f"{c['raw']:.1e}", f"{c['unit']:.1e} ({c['unit_max_angle_deg']:.2g} deg)",
                 f"{100 * d['vs_exact_unit']:.2f} % \\ {100 * s['vs_exact_unit']:.2f} %",
                 f"{d['constraint_residual']:.0e} \\ {s['constraint_residual']:.0e}"])
@@ -302,7 +303,8 @@ def main() -> int:
     if args.one:
         print(json.dumps(measure_one(args.one, k, repeats, solve_repeats, args.seed)))
         return 0
-    doc = run(common.chosen_meshes(args, MESHES, QUICK_MESHES), k, repeats, solve_repeats, args.seed, args.out or ("spectral_quick" if args.quick else "spectral"))
+    doc = run(common.chosen_meshes(args, MESHES, QUICK_MESHES), k, repeats, solve_repeats, args.seed,
+              args.out or ("spectral_quick" if args.quick else "spectral"))
     print(json.dumps(doc, indent=2))
     print(markdown(doc["results"], doc["targets"], doc["meta"]))
     return 0
