@@ -6,6 +6,7 @@ subdivision (every triangle -> 4; 86,482 -> 345,928 faces), generated in memory 
 """
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import platform
@@ -81,6 +82,16 @@ def cpu_seconds() -> float:
 
 def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+#: seconds to wait before a measured block (settle): longer than OpenBLAS's default spin of its worker threads
+#: after a parallel call (2^28 cycles, ~0.1 s), which would otherwise be charged to the next block's CPU time
+SETTLE_S = 0.3
+
+
+def settle(seconds: float = SETTLE_S) -> None:
+    """Lets the worker threads of the previous native call go idle before the next measured block."""
+    time.sleep(seconds)
 
 
 class Clock:
@@ -159,3 +170,45 @@ def fmt_ms(seconds: float | None) -> str:
     if seconds < 120:
         return f"{seconds:.1f} s"
     return f"{int(seconds // 60)}m{int(seconds % 60):02d}s"
+
+
+def markdown_table(columns: list[str], rows: list[list[str]]) -> str:
+    """A markdown table: the column titles, then one line per row of cells."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    return "\n".join(lines + ["| " + " | ".join(cells) + " |" for cells in rows])
+
+
+def mesh_parser(doc: str, quick_help: str, meshes_help: str = "comma-separated meshes of tests/data"):
+    """The options of a benchmark that measures each mesh in a child process: --quick, --meshes and the hidden
+    --one (the mesh a child measures)."""
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    parser.add_argument("--meshes", help=meshes_help)
+    parser.add_argument("--one", help=argparse.SUPPRESS)
+    return parser
+
+
+def chosen_meshes(args, meshes, quick_meshes) -> list[str]:
+    """--meshes if given, else the quick or the full list."""
+    return args.meshes.split(",") if args.meshes else list(quick_meshes if args.quick else meshes)
+
+
+def run_children(script: Path, meshes: list[str], child_args: list[str], label: str) -> list[dict]:
+    """run_child for every mesh (`--one mesh` + child_args), in order."""
+    return [run_child(Path(script), ["--one", name, *child_args], f"{label} {name}") for name in meshes]
+
+
+def repeats_main(doc: str, quick_help: str, *, measure_one, run, table, meshes, quick_meshes, stem: str) -> int:
+    """main() of a benchmark whose only other option is --repeats (1 with --quick, else 3): a child measures one
+    mesh and prints its JSON; the parent runs `run(meshes, repeats, stem)` and prints the document and `table`."""
+    parser = mesh_parser(doc, quick_help)
+    parser.add_argument("--repeats", type=int)
+    args = parser.parse_args()
+    if args.one:
+        print(json.dumps(measure_one(args.one, args.repeats or 3)))
+        return 0
+    repeats = args.repeats or (1 if args.quick else 3)
+    result = run(chosen_meshes(args, meshes, quick_meshes), repeats, f"{stem}_quick" if args.quick else stem)
+    print(json.dumps(result, indent=2))
+    print(table(result["results"]))
+    return 0

@@ -16,8 +16,6 @@ Usage: python bench/exact_solver.py [--quick] [--meshes a.obj,b.off,armadillo-x4
 """
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
 import sys
 import time
@@ -103,8 +101,7 @@ def table(rows: list[dict]) -> str:
 
 
 def run(meshes: list[str], repeats: int, stem: str = "exact_solver") -> dict:
-    rows = [common.run_child(Path(__file__), ["--one", name, "--repeats", str(repeats)], f"exact {name}")
-            for name in meshes]
+    rows = common.run_children(Path(__file__), meshes, ["--repeats", str(repeats)], "exact")
     m = common.meta(repeats=repeats, setting=(f"4-direction field, curvature-max alignment, strength 1, "
                                               f"{NUM_CONSTRAINTS} random hard direction constraints"))
     doc = {"meta": m, "results": rows}
@@ -114,23 +111,6 @@ def run(meshes: list[str], repeats: int, stem: str = "exact_solver") -> dict:
     return doc
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="two small meshes, one repeat")
-    parser.add_argument("--meshes")
-    parser.add_argument("--repeats", type=int)
-    parser.add_argument("--one", help=argparse.SUPPRESS)
-    args = parser.parse_args()
-    if args.one:
-        print(json.dumps(measure_one(args.one, args.repeats or 3)))
-        return 0
-    meshes = args.meshes.split(",") if args.meshes else (QUICK_MESHES if args.quick else MESHES)
-    repeats = args.repeats or (1 if args.quick else 3)
-    doc = run(meshes, repeats, "exact_solver_quick" if args.quick else "exact_solver")
-    print(json.dumps(doc, indent=2))
-    print(table(doc["results"]))
-    return 0
-
-
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(common.repeats_main(__doc__, "two small meshes, one repeat", measure_one=measure_one, run=run,
+                                 table=table, meshes=MESHES, quick_meshes=QUICK_MESHES, stem="exact_solver"))

@@ -28,7 +28,6 @@ Usage: python bench/guides.py [--quick] [--meshes a.obj,b.obj] [--repeats 7]
 """
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import sys
@@ -220,21 +219,18 @@ def comb_brush(s, rng, active, cent, normals, diag, repeats: int, timed) -> dict
 
 def table(results: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | energy | curve move (live region) | comb brush, one tick of 2 samples (live "
-             "region) | comb stroke of 24 samples | weight change (live region) | target change (global, no "
-             "refactor) | weight change, global refactor | global solve after a live edit |", "|" + "---|" * 10]
-    for r in results:
-        for label in ("biharmonic", "harmonic"):
-            x = r[label]
-
-            def cell(key):
-                e = x[key]
-                reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
-                return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
-            lines.append(f"| {r['mesh']} | {r['faces']:,} | {label} | {cell('curve_move')} | {cell('comb_stroke')} | "
-                         f"{f(x['comb_stroke']['stroke_s'])} | {cell('weight_change')} | {cell('target_change')} | "
-                         f"{f(x['weight_change_global']['total_s'])} | {f(x['curve_move']['global_after_s'])} |")
-    return "\n".join(lines)
+    def cell(x, key):
+        e = x[key]
+        reg = f", {e['region_faces']:,} faces" if e.get("region_faces") else ""
+        return f"{f(e['total_s'])} ({f(e['guide_s'])} guide + {f(e['solve_s'])} solve{reg})"
+    columns = ["mesh", "faces", "energy", "curve move (live region)", "comb brush, one tick of 2 samples (live region)",
+               "comb stroke of 24 samples", "weight change (live region)", "target change (global, no refactor)",
+               "weight change, global refactor", "global solve after a live edit"]
+    rows = [[r["mesh"], f"{r['faces']:,}", label, cell(r[label], "curve_move"), cell(r[label], "comb_stroke"),
+             f(r[label]["comb_stroke"]["stroke_s"]), cell(r[label], "weight_change"), cell(r[label], "target_change"),
+             f(r[label]["weight_change_global"]["total_s"]), f(r[label]["curve_move"]["global_after_s"])]
+            for r in results for label in ("biharmonic", "harmonic")]
+    return common.markdown_table(columns, rows)
 
 
 #: the columns of the breakdown table: (header, key of breakdown())
@@ -245,14 +241,14 @@ BREAKDOWN_COLUMNS = (("guide", "guide"), ("region choice", "region"), ("rows of 
 
 
 def breakdown_table(results: list[dict]) -> str:
-    heads = ["mesh", "live region"] + [h for h, _ in BREAKDOWN_COLUMNS] + ["total"]
-    lines = ["| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
+    columns = ["mesh", "live region"] + [h for h, _ in BREAKDOWN_COLUMNS] + ["total"]
+    rows = []
     for r in results:
         b = r["biharmonic"]["curve_move"].get("breakdown")
         if b:
-            cells = [r["mesh"], f"{int(b['region_faces']):,}"] + [common.fmt_ms(b[k]) for _, k in BREAKDOWN_COLUMNS]
-            lines.append("| " + " | ".join(cells + [common.fmt_ms(b["guide"] + b["total"])]) + " |")
-    return "\n".join(lines)
+            rows.append([r["mesh"], f"{int(b['region_faces']):,}"] + [common.fmt_ms(b[k]) for _, k in BREAKDOWN_COLUMNS]
+                        + [common.fmt_ms(b["guide"] + b["total"])])
+    return common.markdown_table(columns, rows)
 
 
 def targets(results: list[dict]) -> list[dict]:
@@ -268,20 +264,17 @@ def targets(results: list[dict]) -> list[dict]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="rocker arm only, 3 repeats")
-    parser.add_argument("--meshes", help="comma-separated meshes of tests/data (default: bunny, armadillo)")
+    parser = common.mesh_parser(__doc__, "rocker arm only, 3 repeats",
+                                "comma-separated meshes of tests/data (default: bunny, armadillo)")
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--seed", type=int, default=11)
-    parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
         print(json.dumps(measure_one(args.one, args.repeats, args.seed)))
         return 0
-    meshes = args.meshes.split(",") if args.meshes else (QUICK_MESHES if args.quick else MESHES)
     repeats = 3 if args.quick else args.repeats
-    results = [common.run_child(Path(__file__), ["--one", m, "--repeats", str(repeats), "--seed", str(args.seed)],
-                                f"guides {m}") for m in meshes]
+    results = common.run_children(Path(__file__), common.chosen_meshes(args, MESHES, QUICK_MESHES),
+                                  ["--repeats", str(repeats), "--seed", str(args.seed)], "guides")
     doc = {"meta": common.meta(quick=args.quick, repeats=repeats), "results": results, "targets": targets(results)}
     md = "\n".join(["# Live guide edits (exact session)", "", table(results), "",
                     "Medians of " + str(repeats) + " edits. total = guide computation + solve; live edits solve a "

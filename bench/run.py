@@ -127,10 +127,11 @@ def combined_rows(exact: dict | None, spec: dict | None, oneshot: dict | None = 
 
 def combined_table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | paper mesh (faces) | basis set-up k=500: wall (CPU) | paper | basis memory double \\ float32 "
-             "| reduced set-up & solve harm. \\ biharm. | paper | reduced update harm. \\ biharm. "
-             "| factorization harm. \\ biharm. | paper | unreduced solve harm. \\ biharm. | paper |",
-             "|" + "---|" * 13]
+    columns = ["mesh", "faces", "paper mesh (faces)", "basis set-up k=500: wall (CPU)", "paper",
+               "basis memory double \\ float32", "reduced set-up & solve harm. \\ biharm.", "paper",
+               "reduced update harm. \\ biharm.", "factorization harm. \\ biharm.", "paper",
+               "unreduced solve harm. \\ biharm.", "paper"]
+    table = []
     for r in rows:
         p = r.get("paper")
         pm = f"{p['paper_mesh']} ({p['faces']}){'' if p['match'] == 'same' else ', similar size only'}" if p else "-"
@@ -153,8 +154,8 @@ def combined_table(rows: list[dict]) -> str:
                       f"{p['solve'][0]} \\ {p['solve'][1]} ms" if p else "-"]
         else:
             cells += ["-", "-", "-", "-"]
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        table.append(cells)
+    return common.markdown_table(columns, table)
 
 
 def live_summary(live: dict) -> str:

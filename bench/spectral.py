@@ -29,7 +29,6 @@ Usage: python bench/spectral.py [--quick] [--meshes a.obj,...] [--k 500] [--repe
 """
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import sys
@@ -189,42 +188,42 @@ def paper_cells(mesh: str) -> tuple[str, str]:
 
 def table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | faces | basis k | basis set-up wall (CPU) | paper basis | memory double \\ float32 | peak RSS "
-             "| reduced set-up & solve harm. \\ biharm. | paper | update (re-aim + solve_coefficients) harm. \\ biharm. "
-             "| strength change | update + field U x | reconstruction U x double \\ float32 | load before/after basis |",
-             "|" + "---|" * 14]
+    columns = ["mesh", "faces", "basis k", "basis set-up wall (CPU)", "paper basis", "memory double \\ float32",
+               "peak RSS", "reduced set-up & solve harm. \\ biharm.", "paper",
+               "update (re-aim + solve_coefficients) harm. \\ biharm.", "strength change", "update + field U x",
+               "reconstruction U x double \\ float32", "load before/after basis"]
+    cells = []
     for r in rows:
-        h, b = r["harmonic"], r["biharmonic"]
+        h, b = r["harmonic"]["double"], r["biharmonic"]["double"]
         pb, pr = paper_cells(r["mesh"])
-        lines.append(
-            f"| {r['mesh']} | {r['faces']} | {r['k']} | {f(r['basis']['wall_s'])} ({f(r['basis']['cpu_s'])}) | {pb} | "
-            f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])} | "
-            f"{r['peak_rss_mb']:.0f} MB | "
-            f"{f(h['double']['setup_and_first_solve_s'])} \\ {f(b['double']['setup_and_first_solve_s'])} | {pr} | "
-            f"{f(h['double']['update_s'])} \\ {f(b['double']['update_s'])} | "
-            f"{f(h['double']['strength_change_s'])} \\ {f(b['double']['strength_change_s'])} | "
-            f"{f(h['double']['update_and_field_s'])} \\ {f(b['double']['update_and_field_s'])} | "
-            f"{f(b['double']['reconstruction_s'])} \\ {f(b['single']['reconstruction_s'])} | "
-            f"{r['loadavg_before_basis'][0]:.1f} / {r['loadavg_after_basis'][0]:.1f} |")
-    return "\n".join(lines)
+        cells.append([
+            r["mesh"], str(r["faces"]), str(r["k"]), f"{f(r['basis']['wall_s'])} ({f(r['basis']['cpu_s'])})", pb,
+            f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])}",
+            f"{r['peak_rss_mb']:.0f} MB", f"{f(h['setup_and_first_solve_s'])} \\ {f(b['setup_and_first_solve_s'])}", pr,
+            f"{f(h['update_s'])} \\ {f(b['update_s'])}", f"{f(h['strength_change_s'])} \\ {f(b['strength_change_s'])}",
+            f"{f(h['update_and_field_s'])} \\ {f(b['update_and_field_s'])}",
+            f"{f(b['reconstruction_s'])} \\ {f(r['biharmonic']['single']['reconstruction_s'])}",
+            f"{r['loadavg_before_basis'][0]:.1f} / {r['loadavg_after_basis'][0]:.1f}"])
+    return common.markdown_table(columns, cells)
 
 
 def precision_table(rows: list[dict]) -> str:
     f = common.fmt_ms
-    lines = ["| mesh | energy | memory double \\ float32 | update double \\ float32 | reconstruction double \\ float32 "
-             "| float32 vs double: x | raw w | unit field (max angle) | reduced vs exact, unit field: double \\ float32 "
-             "| constraint residual double \\ float32 |", "|" + "---|" * 10]
+    columns = ["mesh", "energy", "memory double \\ float32", "update double \\ float32",
+               "reconstruction double \\ float32", "float32 vs double: x", "raw w", "unit field (max angle)",
+               "reduced vs exact, unit field: double \\ float32", "constraint residual double \\ float32"]
+    cells = []
     for r in rows:
         for label in ("harmonic", "biharmonic"):
-            e = r[label]
-            d, s, c = e["double"], e["single"], e["single_vs_double"]
-            lines.append(
-                f"| {r['mesh']} | {label} | {mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])} | "
-                f"{f(d['update_s'])} \\ {f(s['update_s'])} | {f(d['reconstruction_s'])} \\ {f(s['reconstruction_s'])} | "
-                f"{c['coefficients']:.1e} | {c['raw']:.1e} | {c['unit']:.1e} ({c['unit_max_angle_deg']:.2g} deg) | "
-                f"{100 * d['vs_exact_unit']:.2f} % \\ {100 * s['vs_exact_unit']:.2f} % | "
-                f"{d['constraint_residual']:.0e} \\ {s['constraint_residual']:.0e} |")
-    return "\n".join(lines)
+            d, s, c = r[label]["double"], r[label]["single"], r[label]["single_vs_double"]
+            cells.append([
+                r["mesh"], label, f"{mb(r['basis']['memory_double_bytes'])} \\ {mb(r['basis']['memory_single_bytes'])}",
+                f"{f(d['update_s'])} \\ {f(s['update_s'])}",
+                f"{f(d['reconstruction_s'])} \\ {f(s['reconstruction_s'])}",
+                f"{c['coefficients']:.1e}", f"{c['raw']:.1e}", f"{c['unit']:.1e} ({c['unit_max_angle_deg']:.2g} deg)",
+                f"{100 * d['vs_exact_unit']:.2f} % \\ {100 * s['vs_exact_unit']:.2f} %",
+                f"{d['constraint_residual']:.0e} \\ {s['constraint_residual']:.0e}"])
+    return common.markdown_table(columns, cells)
 
 
 def target_check(rows: list[dict]) -> list[dict]:
@@ -291,15 +290,12 @@ def run(meshes: list[str], k: int, repeats: int, solve_repeats: int, seed: int =
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="small meshes, k = 100, few repeats")
-    parser.add_argument("--meshes")
+    parser = common.mesh_parser(__doc__, "small meshes, k = 100, few repeats")
     parser.add_argument("--k", type=int)
     parser.add_argument("--repeats", type=int)
     parser.add_argument("--solve-repeats", type=int)
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--out", help="stem of the result files in bench/results (default spectral, spectral_quick)")
-    parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args()
     k = args.k or (100 if args.quick else 500)
     repeats = args.repeats or (30 if args.quick else 200)
@@ -307,8 +303,8 @@ def main() -> int:
     if args.one:
         print(json.dumps(measure_one(args.one, k, repeats, solve_repeats, args.seed)))
         return 0
-    meshes = args.meshes.split(",") if args.meshes else (QUICK_MESHES if args.quick else MESHES)
-    doc = run(meshes, k, repeats, solve_repeats, args.seed, args.out or ("spectral_quick" if args.quick else "spectral"))
+    doc = run(common.chosen_meshes(args, MESHES, QUICK_MESHES), k, repeats, solve_repeats, args.seed,
+              args.out or ("spectral_quick" if args.quick else "spectral"))
     print(json.dumps(doc, indent=2))
     print(markdown(doc["results"], doc["targets"], doc["meta"]))
     return 0

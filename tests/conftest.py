@@ -347,3 +347,35 @@ def stationarity_residual(ops, order: int, lam: float, w, rhs, free) -> float:
     size += abs(lam) * mass * np.abs(w) + np.abs(rhs)
     free = np.asarray(free)
     return float(np.abs(r[free]).max() / size[free].max())
+
+
+def reference_indices(mesh_native, ops, z) -> dict:
+    """Independent index computation from the ring order, `connection` and angle_defect: for every
+    interior vertex with nonzero ring vectors, (sum psi_j + n K_v) / (2 pi n), psi_j in (-pi, pi], walking each
+    ring step by step (docs/math.md section 7). Returns {vertex: index} for the non-zero indices."""
+    import numpy as np
+
+    import meshgen as mg
+
+    n = ops.n
+    r = np.asarray(ops.connection)
+    de = np.asarray(mesh_native.dual_edges())
+    lut = {}
+    for e, (f0, f1, _, _) in enumerate(de):
+        lut[(int(f0), int(f1))] = r[e]
+        lut[(int(f1), int(f0))] = np.conj(r[e])
+    out = {}
+    for v in range(mesh_native.num_vertices):
+        if not mesh_native.vertex_is_interior(v):
+            continue
+        ring = list(mesh_native.vertex_ring_faces(v))
+        zr = z[ring]
+        if np.any(zr == 0):
+            continue
+        total = 0.0
+        for a, b, za, zb in zip(ring, ring[1:] + ring[:1], zr, np.roll(zr, -1)):
+            total += float(mg.wrap_angle(np.angle(zb / (lut[(a, b)] * za))))
+        idx = (total + n * mesh_native.angle_defect(v)) / (2 * np.pi * n)
+        if abs(idx) > 0.5 / n:
+            out[v] = idx
+    return out

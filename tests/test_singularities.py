@@ -14,38 +14,12 @@ import numpy as np
 import pytest
 
 import meshgen as mg
-from conftest import core_mesh, mesh_from_arrays
+from conftest import core_mesh, mesh_from_arrays, reference_indices
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
 
 
-
-def _reference_indices(mesh_native, ops, z):
-    """Independent index computation from the ring order, `connection` and angle_defect: for every
-    interior vertex with nonzero ring vectors, (sum psi_j + n K_v) / (2 pi n), psi_j in (-pi, pi]."""
-    n = ops.n
-    r = np.asarray(ops.connection)
-    de = np.asarray(mesh_native.dual_edges())
-    lut = {}
-    for e, (f0, f1, _, _) in enumerate(de):
-        lut[(int(f0), int(f1))] = r[e]
-        lut[(int(f1), int(f0))] = np.conj(r[e])
-    out = {}
-    for v in range(mesh_native.num_vertices):
-        if not mesh_native.vertex_is_interior(v):
-            continue
-        ring = list(mesh_native.vertex_ring_faces(v))
-        zr = z[ring]
-        if np.any(zr == 0):
-            continue
-        total = 0.0
-        for a, b, za, zb in zip(ring, ring[1:] + ring[:1], zr, np.roll(zr, -1)):
-            total += float(mg.wrap_angle(np.angle(zb / (lut[(a, b)] * za))))
-        idx = (total + n * mesh_native.angle_defect(v)) / (2 * np.pi * n)
-        if abs(idx) > 0.5 / n:
-            out[v] = idx
-    return out
 
 
 def _check_indices(mesh, result, chi, n):
@@ -57,7 +31,7 @@ def _check_indices(mesh, result, chi, n):
         assert mesh.native.vertex_is_interior(v)
     # independent recomputation from the raw (unnormalised) field gives the same set
     ops = nat.FieldOperators(mesh.native, n, "geometric")
-    ref = _reference_indices(mesh.native, ops, np.asarray(result.raw_solution))
+    ref = reference_indices(mesh.native, ops, np.asarray(result.raw_solution))
     got = {int(v): float(i) for v, i in sings}
     assert set(ref) == set(got)
     for v in ref:

@@ -1,9 +1,11 @@
 // Binding of the operators area: nfield._native.FieldOperators (operators.hpp, per_face.hpp), principal
-// curvature and alignment fields (curvature.hpp), singularity indices and ranges (singularities.hpp).
+// curvature and alignment fields (curvature.hpp), singularity indices and ranges (singularities.hpp), the summary
+// of a solution (field_summary.hpp).
 #include <string>
 
 #include "binding_support.hpp"
 #include "nfield/curvature.hpp"
+#include "nfield/field_summary.hpp"
 #include "nfield/operators.hpp"
 #include "nfield/per_face.hpp"
 #include "nfield/singularities.hpp"
@@ -92,7 +94,8 @@ void bind_operators(py::module_& m) {
   }, py::arg("ops"), py::arg("kind"));
 
   m.def("singularity_indices", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& z) {
-    const auto idx = singularity_indices(*ops, to_complex_vector(z, "field"));
+    const ComplexVector field = to_complex_vector(z, "field");
+    const auto idx = without_gil([&] { return singularity_indices(*ops, field); });
     std::vector<int> v;
     std::vector<double> x;
     for (const auto& s : idx) {
@@ -101,6 +104,21 @@ void bind_operators(py::module_& m) {
     }
     return py::make_tuple(from_std(v), from_std(x));
   }, py::arg("ops"), py::arg("z"));
+
+  m.def("field_summary", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& raw, int order, bool details) {
+    const ComplexVector w = to_complex_vector(raw, "field");
+    const FieldSummary s = without_gil([&] { return summarize_field(*ops, w, order, details); });
+    std::vector<int> vertices;
+    std::vector<double> indices;
+    for (const auto& v : s.singularities) {
+      vertices.push_back(v.vertex);
+      indices.push_back(static_cast<double>(v.numerator) / ops->n());
+    }
+    return py::make_tuple(from_complex(s.unit), from_rows(s.first_direction), s.energy, from_std(vertices),
+                          from_std(indices));
+  }, py::arg("ops"), py::arg("raw"), py::arg("order"), py::arg("details") = true,
+        "(unit field, first direction per face (F, 3), energy E_order of the unit field, singular vertices, their "
+        "indices) of a raw solution per face; without details the energy is NaN and there are no singularities");
 
   m.def("singularity_numerator_range", [](std::shared_ptr<FieldOperators> ops, int vertex) {
     return singularity_numerator_range(*ops, vertex);

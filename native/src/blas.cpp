@@ -1,6 +1,7 @@
 #include "nfield/blas.hpp"
 
 #include <cstddef>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,9 @@ extern "C" {
 void zgemm_(const char* ta, const char* tb, const int* m, const int* n, const int* k, const std::complex<double>* alpha,
             const std::complex<double>* a, const int* lda, const std::complex<double>* b, const int* ldb,
             const std::complex<double>* beta, std::complex<double>* c, const int* ldc);
+void ztrsm_(const char* side, const char* uplo, const char* trans, const char* diag, const int* m, const int* n,
+            const std::complex<double>* alpha, const std::complex<double>* a, const int* lda, std::complex<double>* b,
+            const int* ldb);
 void zgemv_(const char* t, const int* m, const int* n, const std::complex<double>* alpha, const std::complex<double>* a,
             const int* lda, const std::complex<double>* x, const int* incx, const std::complex<double>* beta,
             std::complex<double>* y, const int* incy);
@@ -39,6 +43,13 @@ void gemm(char ta, char tb, int m, int n, int k, std::complex<double> alpha, con
     return;
   }
   zgemm_(&ta, &tb, &m, &n, &k, &alpha, a, &lda, b, &ldb, &beta, c, &ldc);
+}
+
+void trsm_left(char uplo, char trans, char diag, int m, int n, std::complex<double> alpha, const std::complex<double>* a,
+               int lda, std::complex<double>* b, int ldb) {
+  if (m <= 0 || n <= 0) return;
+  const char side = 'L';
+  ztrsm_(&side, &uplo, &trans, &diag, &m, &n, &alpha, a, &lda, b, &ldb);
 }
 
 void gemv(char t, int m, int n, const std::complex<double>* a, const std::complex<double>* x, std::complex<double>* y) {
@@ -76,15 +87,28 @@ void hermitian_eigen(Eigen::MatrixXcd& a, Eigen::VectorXd& w) {
   if (info != 0) throw SolverError("dense Hermitian eigen solver (zheevd) failed, info=" + std::to_string(info));
 }
 
+namespace {
+// Guards may live in several threads at once (a basis computed by a worker thread while the caller solves): the
+// first one sets OpenBLAS single-threaded, the last one restores the count it found.
+std::mutex blas_threads_mutex;
+int guards_alive = 0;
+int threads_before = 0;
+}  // namespace
+
 SingleThreadedBlas::SingleThreadedBlas() {
-  if (openblas_get_num_threads != nullptr && openblas_set_num_threads != nullptr) {
-    saved_ = openblas_get_num_threads();
-    if (saved_ > 1) openblas_set_num_threads(1);
+  if (openblas_get_num_threads == nullptr || openblas_set_num_threads == nullptr) return;
+  const std::lock_guard<std::mutex> lock(blas_threads_mutex);
+  active_ = true;
+  if (guards_alive++ == 0) {
+    threads_before = openblas_get_num_threads();
+    if (threads_before > 1) openblas_set_num_threads(1);
   }
 }
 
 SingleThreadedBlas::~SingleThreadedBlas() {
-  if (saved_ > 1) openblas_set_num_threads(saved_);
+  if (!active_) return;
+  const std::lock_guard<std::mutex> lock(blas_threads_mutex);
+  if (--guards_alive == 0 && threads_before > 1) openblas_set_num_threads(threads_before);
 }
 
 }  // namespace nfield

@@ -30,10 +30,21 @@ FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, 
   mass_.resize(N);
   for (int u = 0; u < N; ++u) mass_[u] = m.face_area(face_of_unknown_[u]);
 
+  // S in compressed columns, written edge by edge (the assembly is part of every solve from scratch; walking the
+  // dual edges in order instead of each face's edges halves its cost, which is memory latency).
+  // w |r z_a - z_b|^2 = w (|z_a|^2 + |z_b|^2) - w conj(z_b) r z_a - w conj(z_a) conj(r) z_b  (a = face0, b = face1):
+  // column a holds -w r in row b, column b holds -w conj(r) in row a, both diagonals w.
   const auto& P = m.positions();
   const auto& edges = m.dual_edges();
   edge_weight_.resize(edges.size());
   transport_.resize(edges.size());
+  std::vector<int> start(N + 1, 0);
+  for (int a = 0; a < N; ++a)
+    start[a + 1] = start[a] + 1 + static_cast<int>(m.face_dual_edges(face_of_unknown_[a]).size());
+  std::vector<int> row(start[N]);
+  std::vector<Complex> value(start[N]);
+  std::vector<int> next(start.begin(), start.end() - 1);
+  std::vector<double> diagonal(N, 0.0);
   for (size_t e = 0; e < edges.size(); ++e) {
     const DualEdge& d = edges[e];
     double w = 1.0;
@@ -41,46 +52,39 @@ FieldOperators::FieldOperators(std::shared_ptr<const TriangleMesh> mesh, int n, 
       const double l2 = (P.row(d.vertex1) - P.row(d.vertex0)).squaredNorm();
       w = 3.0 * l2 / (m.face_area(d.face0) + m.face_area(d.face1));
     }
+    const Complex r = connection_.transport(static_cast<int>(e), n_);
     edge_weight_[e] = w;
-    transport_[e] = connection_.transport(static_cast<int>(e), n_);
+    transport_[e] = r;
+    const int a = unknown_of_face_[d.face0], b = unknown_of_face_[d.face1];
+    row[next[a]] = b, value[next[a]++] = -w * r;
+    row[next[b]] = a, value[next[b]++] = -w * std::conj(r);
+    diagonal[a] += w, diagonal[b] += w;
   }
-  // S column by column (compressed storage written directly: the assembly is part of every solve from scratch).
-  // w |r z_a - z_b|^2 = w (|z_a|^2 + |z_b|^2) - w conj(z_b) r z_a - w conj(z_a) conj(r) z_b  (a = face0, b = face1):
-  // column a holds -w r in row b, column b holds -w conj(r) in row a, both diagonals w.
-  std::vector<int> start(N + 1, 0);
-  std::vector<std::pair<int, Complex>> entries;
-  entries.reserve(N + 2 * edges.size());
-  std::vector<std::pair<int, Complex>> column;
-  for (int a = 0; a < N; ++a) {
-    const int f = face_of_unknown_[a];
-    column.clear();
-    double diagonal = 0.0;
-    for (int e : m.face_dual_edges(f)) {
-      const DualEdge& d = edges[e];
-      const double w = edge_weight_[e];
-      diagonal += w;
-      if (d.face0 == f)
-        column.emplace_back(unknown_of_face_[d.face1], -w * transport_[e]);
-      else
-        column.emplace_back(unknown_of_face_[d.face0], -w * std::conj(transport_[e]));
-    }
-    column.emplace_back(a, Complex(diagonal, 0.0));
-    std::sort(column.begin(), column.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
-    for (const auto& [row, value] : column) {
-      if (!entries.empty() && static_cast<int>(entries.size()) > start[a] && entries.back().first == row)
-        entries.back().second += value;  // two dual edges between the same faces (never on a clean mesh)
-      else
-        entries.emplace_back(row, value);
-    }
-    start[a + 1] = static_cast<int>(entries.size());
-  }
+  // Each column: its diagonal, its rows in order, two dual edges between the same faces (never on a clean mesh)
+  // summed into one entry.
   harmonic_.resize(N, N);
-  harmonic_.resizeNonZeros(static_cast<Eigen::Index>(entries.size()));
-  std::copy(start.begin(), start.end(), harmonic_.outerIndexPtr());
-  for (size_t k = 0; k < entries.size(); ++k) {
-    harmonic_.innerIndexPtr()[k] = entries[k].first;
-    harmonic_.valuePtr()[k] = entries[k].second;
+  harmonic_.resizeNonZeros(start[N]);
+  int* outer = harmonic_.outerIndexPtr();
+  int* inner = harmonic_.innerIndexPtr();
+  Complex* values = harmonic_.valuePtr();
+  std::vector<std::pair<int, Complex>> column;
+  int nnz = 0;
+  for (int a = 0; a < N; ++a) {
+    column.assign(1, {a, Complex(diagonal[a], 0.0)});
+    for (int k = start[a]; k < next[a]; ++k) column.emplace_back(row[k], value[k]);
+    std::sort(column.begin(), column.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    outer[a] = nnz;
+    for (const auto& [i, v] : column) {
+      if (nnz > outer[a] && inner[nnz - 1] == i) {
+        values[nnz - 1] += v;
+      } else {
+        inner[nnz] = i, values[nnz] = v;
+        ++nnz;
+      }
+    }
   }
+  outer[N] = nnz;
+  harmonic_.resizeNonZeros(nnz);
 }
 
 ComplexSparse FieldOperators::energy_matrix(int order) const {

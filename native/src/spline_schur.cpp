@@ -48,7 +48,7 @@ void ExactSolver::compute_gram(const std::vector<int>& faces, const ComplexVecto
   SparseColumn& rhs = loads.back();  // b is sparse without alignment (the safeguard, the anchors' stencils)
   for (int u = 0; u < num_unknowns(); ++u)
     if (b[u] != 0.0) rhs.emplace_back(u, b[u]);
-  const Eigen::MatrixXcd gram = factor_->forward(loads).gram;
+  const Eigen::MatrixXcd gram = factor_->forward(loads, false).gram;
   const Eigen::Index k = static_cast<Eigen::Index>(faces.size());
   gram_ = gram.topLeftCorner(k, k);
   gram_rhs_ = gram.col(k).head(k);  // h_f^H h_b = e_f^T V^-1 b
@@ -224,6 +224,7 @@ void ExactSolver::check_rows_hold(const ComplexVector& field) const {
   // there every value is rounding noise of the field and the rows hold absolutely.
   // Only rings that hold a face constraint can be contradictory: a singularity's own rows are homogeneous
   // (z = 0 satisfies them), so without a face constraint on the ring a violation is inaccuracy, not conflict.
+  if (constraints_.singularity_rows.empty()) return;
   const double floor = 1e-9 * (field.size() ? field.cwiseAbs().maxCoeff() : 0.0);
   std::set<std::string> names;
   for (const auto& [vertex, rows] : constraints_.singularity_rows) {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "nfield/blas.hpp"
 #include "nfield/errors.hpp"
 
 namespace nfield {
@@ -297,6 +298,10 @@ ComplexVector ExactSolver::solve() {
     anchors_ = anchor_closure(vector_faces);
     factor({});
   }
+  // Single-threaded BLAS for the solves: their calls are too small to share, and waking OpenBLAS's threads for
+  // each of them costs more than it saves (bunny, order 2, 30 direction constraints: 10 % less CPU time and 20 %
+  // less wall time on 2 cores).
+  const SingleThreadedBlas blas_guard;
   symmetry_corrections_ = 0;
   const int N = num_unknowns();
 

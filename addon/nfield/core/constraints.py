@@ -44,6 +44,16 @@ def _index(value: Any, what: str) -> int:
     return int(value)
 
 
+def _real(value: Any, must: str) -> float:
+    """float(value); ValueError "<must>, got <value>" for a bool or anything float() refuses."""
+    if isinstance(value, bool):
+        raise ValueError(f"{must}, got {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{must}, got {value!r}") from None
+
+
 def _vec3(value: Any, what: str) -> tuple[float, float, float]:
     try:
         items = list(value)

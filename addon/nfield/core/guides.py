@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from .constraints import _real
+
 __all__ = [
     "FeatureGuide",
     "CurveGuide",
@@ -48,12 +50,7 @@ HARD_MERGE_TOLERANCE_DEGREES = 1.0
 
 
 def _finite(value: Any, name: str, lo: float | None = None, hi: float | None = None, *, open_lo: bool = False) -> float:
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    x = _real(value, f"{name} must be a number")
     bad = not math.isfinite(x) or (lo is not None and (x <= lo if open_lo else x < lo)) or (hi is not None and x > hi)
     if bad:
         lo_s = "" if lo is None else (f"> {lo:g}" if open_lo else f">= {lo:g}")

@@ -64,7 +64,6 @@ from .solve import (
     _check_strength,
     _check_weights,
     _face_vectors,
-    _normalize,
     _result,
     _singularity_numerators,
 )
@@ -265,25 +264,25 @@ class DesignSession(SessionGuides, SessionLive):
         ops = self._operators()
         w = spectral.low_pass(ops, self._basis, field)
         s = self._settings
-        return _result(self.mesh, ops, _normalize(w), w, n=s["n"], order=s["order"], align=s["align"],
+        return _result(self.mesh, ops, w, n=s["n"], order=s["order"], align=s["align"],
                        strength=s["strength"], weights=s["weights"], lam=None, sign_fixed=[], t0=t0,
                        details=details, mode="spectral", basis_size=int(self._basis.size))
 
     # ------------------------------------------------------------------ constraints
     def set_direction(self, face: int, direction) -> None:
         """Add or re-aim a hard direction constraint (3D vector, projected onto the face)."""
-        c = DirectionConstraint(int(face), tuple(float(x) for x in np.asarray(direction, dtype=float).ravel()))
-        self._check_face_constraint(c, "direction", "direction constraint")
-        self._vecs.pop(c.face, None)
-        self._dirs[c.face] = np.asarray(c.direction, dtype=np.float64)
-        self._dirty = True
+        self._set_face_constraint(DirectionConstraint, face, direction, "direction", self._dirs, self._vecs)
 
     def set_vector(self, face: int, vector) -> None:
         """Add or change a hard n-vector constraint (3D vector; its tangent length is the magnitude)."""
-        c = VectorConstraint(int(face), tuple(float(x) for x in np.asarray(vector, dtype=float).ravel()))
-        self._check_face_constraint(c, "vector", "vector constraint")
-        self._dirs.pop(c.face, None)
-        self._vecs[c.face] = np.asarray(c.vector, dtype=np.float64)
+        self._set_face_constraint(VectorConstraint, face, vector, "vector", self._vecs, self._dirs)
+
+    def _set_face_constraint(self, kind, face: int, value, attr: str, into: dict, other: dict) -> None:
+        """Checks the constraint, then stores its 3D vector in `into` (replacing one of the other kind)."""
+        c = kind(int(face), tuple(float(x) for x in np.asarray(value, dtype=float).ravel()))
+        self._check_face_constraint(c, attr, f"{attr} constraint")
+        other.pop(c.face, None)
+        into[c.face] = np.asarray(getattr(c, attr), dtype=np.float64)
         self._dirty = True
 
     def remove(self, face: int) -> None:
@@ -436,10 +435,9 @@ class DesignSession(SessionGuides, SessionLive):
                 w, lam, sign_fixed = self._solve_exact(ops, inputs)
                 self._remember_base(inputs, w)
             mode, basis_size = "exact", None
-        u = _normalize(w)
         self._dirty = False
         self.guide_report = inputs.report
-        self.field = _result(self.mesh, ops, u, w, n=s["n"], order=s["order"], align=s["align"],
+        self.field = _result(self.mesh, ops, w, n=s["n"], order=s["order"], align=s["align"],
                              strength=s["strength"], weights=s["weights"], lam=lam, sign_fixed=sign_fixed,
                              t0=t0, details=details, mode=mode, basis_size=basis_size, guides=inputs.report)
         self.field.live_region = None if region is None else int(len(region))

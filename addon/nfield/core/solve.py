@@ -13,6 +13,7 @@ from .constraints import (
     DirectionConstraint,
     SingularityConstraint,
     VectorConstraint,
+    _real,
     constraint_from_dict,
 )
 from .mesh import Mesh, _jsonable
@@ -130,15 +131,18 @@ def _check_weights(weights: Any) -> str:
 
 def _check_strength(strength: Any) -> float:
     must = f"strength must be a finite number in [{MIN_STRENGTH:g}, {MAX_STRENGTH:g}]"
-    if isinstance(strength, bool):
-        raise ValueError(f"{must}, got {strength!r}")
-    try:
-        s = float(strength)
-    except (TypeError, ValueError):
-        raise ValueError(f"{must}, got {strength!r}") from None
+    s = _real(strength, must)
     if not (math.isfinite(s) and MIN_STRENGTH <= s <= MAX_STRENGTH):
         raise ValueError(f"{must} (got {strength!r})")
     return s
+
+
+def _check_alignment_field(align: str, alignment_field: Any) -> None:
+    """An alignment field is given exactly when align is "field"."""
+    if align == "field" and alignment_field is None:
+        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
+    if align != "field" and alignment_field is not None:
+        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
 
 
 def _check_mesh(mesh: Any) -> Mesh:
@@ -176,37 +180,51 @@ def _sort_constraints(constraints: Iterable, vector_constraints: Iterable, singu
 
 
 def _face_vectors(mesh: Mesh, items: Sequence, attr: str, label: str):
-    """Map input faces to triangles and check the 3D vectors: in range, active, non-zero, tangent."""
-    active = np.asarray(mesh.native.face_active, dtype=bool)
-    normals = np.asarray(mesh.native.face_normals, dtype=np.float64)
-    tris = np.empty(len(items), dtype=np.int64)
-    vecs = np.empty((len(items), 3), dtype=np.float64)
-    for k, c in enumerate(items):
-        t = mesh.face_triangle(c.face)
-        if not active[t]:
+    """Map input faces to triangles and check the 3D vectors: in range, active, non-zero, tangent. All items are
+    checked at once; the error names the first item that fails, with the first check it fails in that order."""
+    k = len(items)
+    tris = np.zeros(k, dtype=np.int64)
+    if k == 0:
+        return tris, np.empty((0, 3), dtype=np.float64)
+    face_errors: dict[int, ValueError] = {}
+    for i, c in enumerate(items):
+        try:
+            tris[i] = mesh.face_triangle(c.face)
+        except ValueError as exc:
+            face_errors[i] = exc
+    d = np.array([np.asarray(getattr(c, attr), dtype=np.float64) for c in items]).reshape(k, 3)
+    active = np.asarray(mesh.native.face_active, dtype=bool)[tris]
+    normals = np.asarray(mesh.native.face_normals, dtype=np.float64)[tris]
+    # Tangency is judged on d / max|d_i|: the norm of d itself under- or overflows for tiny (1e-300) or huge
+    # (1e308) components, which are valid directions.
+    big = np.abs(d).max(axis=1)
+    zero = big == 0.0
+    unit = d / np.where(zero, 1.0, big)[:, None]
+    length = np.linalg.norm(unit, axis=1)
+    proj = unit - normals * (unit * normals).sum(axis=1)[:, None]
+    parallel = np.linalg.norm(proj, axis=1) < TANGENT_TOLERANCE * length
+    overflow = np.zeros(k, dtype=bool) if attr == "direction" else ~np.isfinite(big * length)
+    bad = ~active | zero | parallel | overflow
+    bad[list(face_errors)] = True
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        c, t = items[i], int(tris[i])
+        if i in face_errors:
+            raise face_errors[i]
+        if not active[i]:
             what = f"face {c.face}" if not mesh.has_polygons else f"face {c.face} (triangle {t})"
             raise ValueError(f"{label} on {what}: the face is excluded from the field (degenerate: zero area, "
                              f"repeated vertex, needle or duplicate face)")
-        d = np.asarray(getattr(c, attr), dtype=np.float64)
-        # Tangency is judged on d / max|d_i|: the norm of d itself under- or overflows for tiny (1e-300) or
-        # huge (1e308) components, which are valid directions.
-        big = float(np.abs(d).max())
-        if big == 0.0:
+        if zero[i]:
             raise ValueError(f"{label} on face {c.face}: the {attr} is the zero vector")
-        unit = d / big
-        length = float(np.linalg.norm(unit))
-        proj = unit - normals[t] * float(unit @ normals[t])
-        if float(np.linalg.norm(proj)) < TANGENT_TOLERANCE * length:
-            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is parallel to the face "
+        if parallel[i]:
+            raise ValueError(f"{label} on face {c.face}: the {attr} {d[i].tolist()} is parallel to the face "
                              f"normal (it has no tangent component)")
-        if attr == "direction":
-            d = unit / length  # only the direction counts: keep the native projection in range
-        elif not math.isfinite(big * length):
-            raise ValueError(f"{label} on face {c.face}: the {attr} {d.tolist()} is too long (its length "
-                             f"overflows a double)")
-        tris[k] = t
-        vecs[k] = d
-    return tris, vecs
+        raise ValueError(f"{label} on face {c.face}: the {attr} {d[i].tolist()} is too long (its length "
+                         f"overflows a double)")
+    if attr == "direction":
+        d = unit / length[:, None]  # only the direction counts: keep the native projection in range
+    return tris, d
 
 
 def _check_duplicates(dirs, vecs, sings) -> None:
@@ -248,54 +266,23 @@ def _singularity_numerators(mesh: Mesh, sings: Sequence[SingularityConstraint], 
     return out
 
 
-def _normalize(w: np.ndarray) -> np.ndarray:
-    """w / |w| per entry (0 where w = 0). Real and imaginary parts are divided separately: numpy's complex
-    division computes 1 / |w|, which overflows for subnormal w (a flat mesh with subnormal bumps gives a
-    subnormal curvature alignment and solution) and turned such a field into inf / NaN."""
-    mag = np.abs(w)
-    u = np.zeros_like(w)
-    nz = mag > 0
-    u.real[nz] = w.real[nz] / mag[nz]
-    u.imag[nz] = w.imag[nz] / mag[nz]
-    return u
-
-
-_FRAMES: dict = {}
-
-
-def _frames(ops) -> np.ndarray:
-    """(T, 2, 3) face frames of ops, cached per operator object (they are immutable)."""
-    key = id(ops)
-    cached = _FRAMES.get(key)
-    if cached is None or cached[0] is not ops:
-        _FRAMES.clear()  # keep only the most recent operators alive
-        cached = _FRAMES[key] = (ops, np.asarray(ops.frames, dtype=np.float64))
-    return cached[1]
-
-
-def _result(mesh: Mesh, ops, u, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
+def _result(mesh: Mesh, ops, w, *, n, order, align, strength, weights, lam, sign_fixed, t0,
             details: bool = True, mode: str = "exact", basis_size: int | None = None, guides: Any = None) -> FieldResult:
-    """details=False (live editing) skips the energy (NaN) and the singularity search (None)."""
-    nat = native()
-    # The first direction from the frames; the n-fold set on demand (all_directions()).
-    frames = _frames(ops)
-    angle = np.angle(u) / n
-    first_tri = np.cos(angle)[:, None] * frames[:, 0] + np.sin(angle)[:, None] * frames[:, 1]
-    first_tri[np.abs(u) == 0] = 0.0
-    first = np.ascontiguousarray(mesh.per_face(first_tri))
+    """The FieldResult of a raw solution w (per triangle). The unit field, the first direction per face, the energy
+    and the singularities come from one native pass (field_summary.hpp). details=False (live editing) skips the
+    energy (NaN) and the singularity search (None)."""
+    w = np.asarray(w, dtype=np.complex128)
+    u, first_tri, energy, sv, si = native().field_summary(ops, w, order, details)
+    first = np.ascontiguousarray(mesh.per_face(first_tri)) if mesh.has_polygons else first_tri  # one row per face
     all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
-    energy = float(ops.energy(u, order)) if details else float("nan")
-    sings = None
-    if details:
-        sv, si = nat.singularity_indices(ops, u)
-        sings = [(int(v), float(i)) for v, i in zip(np.asarray(sv).tolist(), np.asarray(si).tolist())]
+    sings = [(int(v), float(i)) for v, i in zip(sv.tolist(), si.tolist())] if details else None
     tf = mesh.triangle_face
     fixed = sorted({int(tf[int(t)]) for t in sign_fixed})
     return FieldResult(
         n=n, order=order, align=align, strength=strength, weights=weights,
         representation=u, raw_solution=w,
         directions=first,
-        singularities=sings, energy=energy, seconds=time.perf_counter() - t0,
+        singularities=sings, energy=float(energy), seconds=time.perf_counter() - t0,
         sign_fixed_faces=fixed, mesh_report=mesh.report, lambda_=lam, mode=mode, basis_size=basis_size, guides=guides,
         _all_directions=all_faces,
     )
@@ -344,10 +331,7 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
     weights = _check_weights(weights)
     if align not in ALIGN_CHOICES:
         raise ValueError(f"unknown align {align!r} (expected one of {', '.join(ALIGN_CHOICES)})")
-    if align == "field" and alignment_field is None:
-        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
-    if align != "field" and alignment_field is not None:
-        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
+    _check_alignment_field(align, alignment_field)
 
     dirs, vecs, sings = _sort_constraints(constraints, vector_constraints, singularities)
     _check_duplicates(dirs, vecs, sings)
@@ -357,7 +341,6 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
 
     nat = native()
     ops = nat.FieldOperators(mesh.native, n, weights)
-    active = np.asarray(mesh.native.face_active, dtype=bool)
 
     alignment = None
     if align in ("curvature-max", "curvature-min"):
@@ -371,7 +354,7 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
             bad = int(np.flatnonzero(~np.isfinite(af).all(axis=1))[0])
             raise ValueError(f"alignment_field has a non-finite vector at face {bad}")
         per_tri = af[mesh.triangle_face]
-        idx = np.flatnonzero(active)
+        idx = np.flatnonzero(np.asarray(mesh.native.face_active, dtype=bool))
         alignment = np.zeros(mesh.num_triangles, dtype=np.complex128)
         alignment[idx] = np.asarray(ops.tangent_to_representation(idx, np.ascontiguousarray(per_tri[idx])))
 
@@ -394,9 +377,8 @@ def solve(mesh: Mesh, n: int = 4, order: int = 2, align: str = "none", strength:
         solver.set_singularity(int(v), int(num))
 
     w = np.asarray(solver.solve(), dtype=np.complex128)
-    u = _normalize(w)
     lam = getattr(solver, "lambda_", None)
-    return _result(mesh, ops, u, w, n=n, order=order, align=align, strength=strength, weights=weights,
+    return _result(mesh, ops, w, n=n, order=order, align=align, strength=strength, weights=weights,
                    lam=None if lam is None else float(lam), sign_fixed=list(solver.sign_fixed_faces), t0=t0)
 
 
@@ -407,10 +389,7 @@ def _solve_guided(mesh: Mesh, *, n, order, align, strength, constraints, vector_
 
     t0 = time.perf_counter()
     mesh = _check_mesh(mesh)
-    if align == "field" and alignment_field is None:
-        raise ValueError('align="field" needs alignment_field, an (F, 3) array of 3D vectors per face')
-    if align != "field" and alignment_field is not None:
-        raise ValueError(f'alignment_field is only used with align="field" (got align={align!r})')
+    _check_alignment_field(align, alignment_field)
     dirs, vecs, sings = _sort_constraints(constraints, vector_constraints, singularities)
     _check_duplicates(dirs, vecs, sings)
     s = DesignSession(mesh, n=n, order=order, align=align, strength=strength, weights=weights,
@@ -475,6 +454,5 @@ def smoothest_field(mesh: Mesh, n: int, weights: str = "geometric") -> FieldResu
     weights = _check_weights(weights)
     ops = native().FieldOperators(mesh.native, n, weights)
     w = np.asarray(native().smoothest_field(ops), dtype=np.complex128)
-    u = _normalize(w)
-    return _result(mesh, ops, u, w, n=n, order=1, align="none", strength=None, weights=weights, lam=None,
+    return _result(mesh, ops, w, n=n, order=1, align="none", strength=None, weights=weights, lam=None,
                    sign_fixed=[], t0=t0)

@@ -18,6 +18,12 @@ namespace nfield {
 void gemm(char ta, char tb, int m, int n, int k, std::complex<double> alpha, const std::complex<double>* a, int lda,
           const std::complex<double>* b, int ldb, std::complex<double> beta, std::complex<double>* c, int ldc);
 
+/// B = alpha op(A)^-1 B (ztrsm, side 'L'): A is m x m lower ('L') or upper ('U') triangular with leading dimension
+/// lda, op = 'N', 'T' or 'C', diag 'N' (or 'U' for a unit diagonal); B is m x n with leading dimension ldb.
+/// Does nothing for m <= 0 or n <= 0.
+void trsm_left(char uplo, char trans, char diag, int m, int n, std::complex<double> alpha, const std::complex<double>* a,
+               int lda, std::complex<double>* b, int ldb);
+
 /// y = op(A) x (zgemv / cgemv) for a column-major m x n matrix A (leading dimension m), op = 'N' or 'C'.
 void gemv(char t, int m, int n, const std::complex<double>* a, const std::complex<double>* x, std::complex<double>* y);
 void gemv(char t, int m, int n, const std::complex<float>* a, const std::complex<float>* x, std::complex<float>* y);
@@ -29,8 +35,10 @@ void hermitian_eigen(Eigen::MatrixXcd& a, Eigen::VectorXd& w);
 
 /// Single-threaded OpenBLAS for the lifetime of the object (no effect with other BLAS implementations),
 /// for code that runs its own threads: OpenBLAS threads on top of them oversubscribe the cores (and spin),
-/// which costs far more than it gains on the thin matrix products of the Lanczos iteration. The previous
-/// thread count is restored on destruction.
+/// which costs far more than it gains on the thin matrix products of the Lanczos iteration; and for the
+/// solves after a factorization, whose BLAS calls are too small to share (one column, or a few dozen on
+/// the supernodes a constraint reaches). Guards may overlap in several threads: the thread count found by
+/// the first is restored when the last one is destroyed.
 class SingleThreadedBlas {
  public:
   SingleThreadedBlas();
@@ -39,7 +47,7 @@ class SingleThreadedBlas {
   SingleThreadedBlas& operator=(const SingleThreadedBlas&) = delete;
 
  private:
-  int saved_ = 0;
+  bool active_ = false;  ///< OpenBLAS is there and this guard counts
 };
 
 }  // namespace nfield

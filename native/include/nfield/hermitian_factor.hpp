@@ -2,7 +2,8 @@
 // supernodal; P the fill-reducing permutation) and the solves the spline solver needs:
 //
 //   solve(b)              x = V^-1 b, refined until accurate (see below). One forward and one backward
-//                         substitution per step.
+//                         substitution per step; for a sparse b the first forward one only on the supernodes b
+//                         reaches (forward() below).
 //   solve_block(B)        V^-1 B for a dense block: one blocked CHOLMOD solve (BLAS 3 on every supernode).
 //   forward(columns)      h_j = L^-1 P b_j for sparse b_j, restricted to the supernodes b_j reaches in the
 //                         elimination tree (the path from b_j's supernodes to the root: 5-16% of L per column
@@ -45,6 +46,8 @@ class HermitianFactor {
   static constexpr double kRefineCondition = 1e6;    ///< condition_estimate() above which solve() refines
   static constexpr double kConverged = 1e-10;        ///< max|correction| / max|x| at which refinement stops
   static constexpr int kMaxRefinements = 4;
+  /// solve() substitutes forward only on the supernodes b reaches when b has fewer than n / kSparseFraction entries.
+  static constexpr int kSparseFraction = 16;
 
   /// Analyzes and factors `matrix` (both triangles stored; the lower one is read). `what` names the system
   /// in messages ("the factorization of the order-2 system (69451 faces)"), `advice` says what needs less
@@ -75,18 +78,23 @@ class HermitianFactor {
     Eigen::MatrixXcd h;     ///< n x k, h_j = L^-1 P b_j (zero outside the supernodes b_j reaches)
     Eigen::MatrixXcd gram;  ///< k x k, gram(i, j) = h_i^H h_j = b_i^H V^-1 b_j
   };
-  Forward forward(const std::vector<SparseColumn>& columns) const;
+  /// `keep_h` = false: only the Gram matrix (h stays empty; h is then never stored whole, only on the supernodes
+  /// each column reaches).
+  Forward forward(const std::vector<SparseColumn>& columns, bool keep_h = true) const;
   /// P^T L^-H h for a block in the permuted space of forward(): V^-1 b_j column by column.
   Eigen::MatrixXcd backward(const Eigen::MatrixXcd& h) const;
 
   /// One refinement step for a block of solutions X of V X = B (residual in long double): X += V^-1 (B - V X).
   /// Returns the size of the correction, max|dX| / max|X|.
   double refine_block(const Eigen::MatrixXcd& B, Eigen::MatrixXcd& X) const;
-  /// max |B - V X| / max |B| for one column, computed in double (a cheap accuracy probe).
+  /// max|B - V X| / max|B| for one column (largest real or imaginary part), computed in double (a cheap
+  /// accuracy probe).
   double relative_residual(const ComplexVector& b, const ComplexVector& x) const;
 
  private:
   Eigen::MatrixXcd cholmod_solve_dense(int system, const Eigen::MatrixXcd& B) const;
+  /// V^-1 b by one forward and one backward substitution (forward() for a sparse b, see kSparseFraction).
+  ComplexVector unrefined_solve(const ComplexVector& b) const;
   /// B - V X with every product accumulated in long double, rounded to double at the end.
   Eigen::MatrixXcd extended_residual(const Eigen::MatrixXcd& B, const Eigen::MatrixXcd& X) const;
 

@@ -4,6 +4,8 @@
 // psi_j = arg(z_{j+1} / (r_j z_j)) in (-pi, pi]; the ring's holonomy is n K_v (K_v the angle defect), so
 //   index(v) = (sum_j psi_j + n K_v) / (2 pi n),
 // an exact multiple of 1/n. On a closed orientable mesh the indices of a field without zeros sum to chi.
+// psi is a property of the dual edge (the step crosses it one way in one ring, the other way, with -psi, in the
+// ring of the edge's other end), so it is computed once per dual edge, face0 -> face1.
 //
 // Singularity constraint for index N/n (the paper's eq. 10 ignores the holonomy; see
 // docs/math.md, section 8): impose on k-1 consecutive steps z_{j+1} = r_j exp(i delta) z_j with

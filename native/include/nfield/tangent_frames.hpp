@@ -37,16 +37,20 @@ class TangentFrames {
 
 /// The angle rotation exp(i (a1 - a0)) of every dual edge (n = 1). The n-connection is its n-th power.
 /// Kept separately from n so that one mesh serves several symmetry orders.
+/// The rotation comes from the edge vector in both frames without an angle: with c_k = <e, x_k> + i <e, y_k>
+/// (= |e| exp(i a_k)), exp(i (a1 - a0)) = c1 conj(c0) / |c1 conj(c0)|, and its n-th power by repeated squaring
+/// (renormalised): as accurate as exp(i n (atan2_1 - atan2_0)) (a phase error of ~n ulp either way), at a
+/// fraction of the cost (two atan2 and a sincos per edge were a third of building the operators).
 class LeviCivitaConnection {
  public:
   LeviCivitaConnection(const TriangleMesh& mesh, const TangentFrames& frames);
-  /// Rotation angle a1 - a0 (radians) of dual edge e, transport face0 -> face1.
-  double angle(int e) const { return angle_[e]; }
-  /// r_e for symmetry n: exp(i n (a1 - a0)).
-  Complex transport(int e, int n) const { return std::polar(1.0, n * angle_[e]); }
+  /// Rotation angle a1 - a0 (radians, (-pi, pi]) of dual edge e, transport face0 -> face1.
+  double angle(int e) const { return std::arg(rotation_[e]); }
+  /// r_e for symmetry n >= 1: exp(i n (a1 - a0)).
+  Complex transport(int e, int n) const;
 
  private:
-  std::vector<double> angle_;
+  std::vector<Complex> rotation_;  ///< exp(i (a1 - a0)) per dual edge
 };
 
 /// Representation vector of a tangent vector t (complex in the face frame) for symmetry n:
