@@ -251,7 +251,7 @@ def clean_designs(draw):
     return mesh, dict(n=n, order=order, align=align, strength=strength), dirs, vecs
 
 
-# conftest.stationarity_residual is a normwise backward error: ~1e-16 for these solves; the bounds.
+# conftest.stationarity_residual is a normwise backward error: ~1e-16 for these solves; the required bounds.
 OPTIMALITY_TOL = {1: 1e-10, 2: 1e-10, 3: 1e-8, 4: 1e-8}
 
 

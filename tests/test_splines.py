@@ -16,7 +16,7 @@ The exact definitions of lambda and the +d safeguard are those of native/include
 Dense references: the KKT system is solved in double and refined with residuals in long double (numpy's
 80-bit extended precision), so a reference is accurate to ~1e-15 even where the system has condition number
 1e10-1e11 (order 3-4 on flat and developable meshes); the native solver refines the same way
-(hermitian_factor.hpp), so the comparisons use 1e-8 at every order (the issue's accuracy target).
+(hermitian_factor.hpp), so the comparisons use 1e-8 at every order (the accuracy required of the exact splines).
 """
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ core = pytest.importorskip("nfield.core", reason="nfield.core is not importable"
 SPIKE = 100.0  # s_f = SPIKE * s_0 * mean area / A_f (spline_solver.hpp)
 # Dense comparison (relative L2): the native result and the refined reference are both accurate far beyond
 # kappa eps (n-vector splines measured 1e-16 to 1e-10 at orders 1-4, the worst on the flat grid at order 4,
-# cond(E_ff) = 3e10); 1e-8 is the issue's target and leaves orders of margin.
+# cond(E_ff) = 3e10); 1e-8 is the required accuracy and leaves orders of margin.
 DENSE_TOL = 1e-8
 
 
@@ -377,7 +377,7 @@ OPTIMALITY_MESHES = {
     "flat_square": lambda: mg.grid(24, 24, 1.0, 1.0, random_diagonals=True, seed=6),  # trivial holonomy
     "cylinder": lambda: mg.cylinder(1.0, 2.0, 24, 12, random_diagonals=True, seed=7),  # developable, open
 }
-# The issue's bounds on the relative stationarity residual (conftest.stationarity_residual: normwise backward
+# The required bounds on the relative stationarity residual (conftest.stationarity_residual: normwise backward
 # error, ~1e-16 for a backward-stable solve; measured <= 1e-15 here at every order).
 OPTIMALITY_TOL = {1: 1e-10, 2: 1e-10, 3: 1e-8, 4: 1e-8}
 
