@@ -355,7 +355,7 @@ def reference_indices(mesh_native, ops, z) -> dict:
     ring step by step (docs/math.md section 7). Returns {vertex: index} for the non-zero indices."""
     import numpy as np
 
-    import meshgen as mg
+    import mesh_reference as mref
 
     n = ops.n
     r = np.asarray(ops.connection)
@@ -374,7 +374,7 @@ def reference_indices(mesh_native, ops, z) -> dict:
             continue
         total = 0.0
         for a, b, za, zb in zip(ring, ring[1:] + ring[:1], zr, np.roll(zr, -1)):
-            total += float(mg.wrap_angle(np.angle(zb / (lut[(a, b)] * za))))
+            total += float(mref.wrap_angle(np.angle(zb / (lut[(a, b)] * za))))
         idx = (total + n * mesh_native.angle_defect(v)) / (2 * np.pi * n)
         if abs(idx) > 0.5 / n:
             out[v] = idx

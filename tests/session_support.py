@@ -7,6 +7,7 @@ import functools
 import numpy as np
 
 import meshgen as mg
+import mesh_reference as mref
 import nfield.core as core
 from conftest import core_mesh
 from nfield.core import DesignSession, DirectionConstraint, VectorConstraint
@@ -87,7 +88,7 @@ def check_constraints(session: DesignSession, w: np.ndarray) -> None:
 
 
 def face_centroids(mesh) -> np.ndarray:
-    return mg.face_centroids(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64))
+    return mref.face_centroids(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64))
 
 
 def patch(mesh, center_face: int, radius: float) -> np.ndarray:

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import meshgen
+import mesh_reference as mref
 from conftest import core_mesh
 
 nfield_core = pytest.importorskip("nfield.core")
@@ -131,7 +132,7 @@ def test_feature_band_weights_fall_off_by_ring():
     assert set(np.round(weight, 12).tolist()) <= {0.0, 1.0, round(2 / 3, 12), round(1 / 3, 12)}
     assert np.all(np.abs(value) <= weight + 1e-12)
     # along a straight boundary away from corners every contribution agrees: |value| = weight
-    cent = meshgen.face_centroids(mesh.vertices, mesh.faces)
+    cent = mref.face_centroids(mesh.vertices, mesh.faces)
     mid = (np.abs(cent[:, 0] - 0.5) < 0.2) & (cent[:, 1] < 0.05)
     assert mid.any() and np.allclose(np.abs(value[mid]), weight[mid]) and np.all(weight[mid] == 1.0)
     # the field direction there is the boundary's (x axis) for n = 4: rep = e^{i 4 a} with a the x angle

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import meshgen as mg
+import mesh_reference as mref
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 
@@ -37,7 +38,7 @@ def _native_mesh(name):
 
 def _tangent_field(V, F, seed=0):
     """A fixed smooth-ish 3D vector field per face (projection onto the face is done by the API)."""
-    c = mg.face_centroids(V, F)
+    c = mref.face_centroids(V, F)
     a = np.array([0.3, -0.5, 0.8])
     rng = np.random.default_rng(seed)
     return np.cross(a, c) + 0.5 * np.sin(3 * c) + 0.1 * rng.normal(size=c.shape)
@@ -72,7 +73,7 @@ def test_frames_orthonormal_tangent_positive(name):
     assert np.abs(np.cross(x, y) - N).max() < 1e-12
     # the mesh's normals are the (unit) right-hand-rule normals of the input winding (clean mesh)
     V, F = MESHES[name]
-    Nref, Aref = mg.face_normals_areas(V, F)
+    Nref, Aref = mref.face_normals_areas(V, F)
     assert np.abs(N - Nref).max() < 1e-12
     assert np.allclose(np.asarray(mesh.face_areas), Aref, rtol=1e-12)
     assert np.allclose(np.asarray(ops.mass), Aref, rtol=1e-12)
@@ -102,7 +103,7 @@ def test_connection_from_geometry_and_reverse(name, n):
     assert np.abs(r * r_ji - 1).max() < 1e-10
     # the energy matrix carries r and its reverse conj(r) = r_ji
     rows, cols, vals = ops.energy_matrix(1)
-    S = mg.dense_from_coo(rows, cols, vals, mesh.num_faces)
+    S = mref.dense_from_coo(rows, cols, vals, mesh.num_faces)
     w = np.asarray(ops.weights_per_edge)
     assert np.abs(S[f0, f1] + w * np.conj(r)).max() < 1e-10 * w.max()
     assert np.abs(S[f1, f0] + w * np.conj(r_ji)).max() < 1e-10 * w.max()  # = -w r_ij
@@ -150,7 +151,7 @@ def test_weights_geometric_and_combinatorial(name):
     assert np.allclose(np.asarray(_ops(mesh, 2).weights_per_edge), w_ref, rtol=1e-12, atol=0)
     assert np.array_equal(np.asarray(_ops(mesh, 2, "combinatorial").weights_per_edge), np.ones(len(de)))
     # on a clean closed mesh every edge is a dual edge; with a boundary the boundary edges are not
-    s = mg.mesh_stats(*MESHES[name])
+    s = mref.mesh_stats(*MESHES[name])
     assert len(de) == s["edges"] - s["boundary_edges"]
 
 
@@ -163,8 +164,8 @@ def test_weights_dimensionless_mass_scales():
     o1, o2 = _ops(m1, 2), _ops(m2, 2)
     assert np.allclose(np.asarray(o1.weights_per_edge), np.asarray(o2.weights_per_edge), rtol=1e-12)
     assert np.allclose(np.asarray(o2.mass), 100 * np.asarray(o1.mass), rtol=1e-12)
-    S1 = mg.dense_from_coo(*o1.energy_matrix(1), m1.num_faces)
-    S2 = mg.dense_from_coo(*o2.energy_matrix(1), m2.num_faces)
+    S1 = mref.dense_from_coo(*o1.energy_matrix(1), m1.num_faces)
+    S2 = mref.dense_from_coo(*o2.energy_matrix(1), m2.num_faces)
     assert np.abs(S1 - S2).max() < 1e-10 * np.abs(S1).max()
 
 
@@ -175,12 +176,12 @@ def test_energy_matrices_are_powers(name):
     mesh = _native_mesh(name)
     ops = _ops(mesh, 2)
     nF = mesh.num_faces
-    S = mg.dense_from_coo(*ops.energy_matrix(1), nF)
+    S = mref.dense_from_coo(*ops.energy_matrix(1), nF)
     Minv = np.diag(1.0 / np.asarray(ops.mass))
     z = np.asarray(ops.tangent_to_representation(np.arange(nF), _tangent_field(*MESHES[name])))
     E = S
     for order in (1, 2, 3):
-        Em = mg.dense_from_coo(*ops.energy_matrix(order), nF)
+        Em = mref.dense_from_coo(*ops.energy_matrix(order), nF)
         scale = np.abs(E).max()
         assert np.abs(Em - E).max() < 1e-10 * scale, order
         assert np.abs(Em - Em.conj().T).max() < 1e-12 * scale
@@ -205,7 +206,7 @@ def test_energy_matches_independent_reference(name, n, weights):
     ops = _ops(mesh, n, weights)
     X = _tangent_field(V, F, seed=n)
     z = np.asarray(ops.tangent_to_representation(np.arange(len(F)), X))
-    ref = mg.ReferenceOperators(V, F, n, weights)
+    ref = mref.ReferenceOperators(V, F, n, weights)
     zr = ref.to_representation(X)
     assert np.allclose(np.abs(z), np.abs(zr), rtol=1e-12)
     e_ref = ref.energy(zr)
@@ -302,7 +303,7 @@ def test_ring_holonomy_is_n_times_angle_defect(name, n):
     mesh = _native_mesh(name)
     ops = _ops(mesh, n)
     _, lut = _edge_lookup(mesh)
-    K = mg.angle_defects(V, F)
+    K = mref.angle_defects(V, F)
     n_interior = 0
     for v in range(len(V)):
         if not mesh.vertex_is_interior(v):
@@ -312,9 +313,9 @@ def test_ring_holonomy_is_n_times_angle_defect(name, n):
         assert abs(mesh.angle_defect(v) - K[v]) < 1e-12
         h = ops.ring_holonomy(v)
         assert -np.pi < h <= np.pi
-        assert abs(mg.wrap_angle(h - n * K[v])) < 1e-9, (v, h, n * K[v])
+        assert abs(mref.wrap_angle(h - n * K[v])) < 1e-9, (v, h, n * K[v])
         prod = _ring_product(ops, mesh, lut, v)
-        assert abs(mg.wrap_angle(np.angle(prod) - h)) < 1e-9
-    s = mg.mesh_stats(V, F)
+        assert abs(mref.wrap_angle(np.angle(prod) - h)) < 1e-9
+    s = mref.mesh_stats(V, F)
     expected_interior = s["vertices_used"] - s["boundary_edges"]  # one boundary vertex per boundary edge
     assert n_interior == expected_interior

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import meshgen as mg
+import mesh_reference as mref
 from conftest import core_mesh, mesh_from_arrays, reference_indices
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
@@ -93,7 +94,7 @@ def test_index_of_constructed_fields():
     V, F = mg.icosphere(3)
     Rx = np.array([[1, 0, 0], [0, np.cos(0.3), -np.sin(0.3)], [0, np.sin(0.3), np.cos(0.3)]])
     mesh = mesh_from_arrays((V, F))
-    c = mg.face_centroids(V, F)
+    c = mref.face_centroids(V, F)
     axis = Rx @ np.array([0.0, 0.0, 1.0])
     fields = {"rotation": np.cross(axis, c), "gradient": axis - (c @ axis)[:, None] * c}
     P = np.asarray(mesh.native.positions)
@@ -114,7 +115,7 @@ def test_index_of_constructed_fields():
 # --------------------------------------------------------------------------- pinned singularities
 def _pick_vertex(mesh, min_valence=6, seed=0):
     F = np.asarray(mesh.native.faces)
-    val = mg.vertex_valence(F, mesh.num_vertices)
+    val = mref.vertex_valence(F, mesh.num_vertices)
     rng = np.random.default_rng(seed)
     cand = [v for v in rng.permutation(mesh.num_vertices)
             if val[v] >= min_valence and mesh.native.vertex_is_interior(v)]
@@ -257,7 +258,7 @@ def test_fig1_geometric_weights_give_symmetric_layout(seed):
     Deterministic (fixed seeds)."""
     abc = np.array([1.6, 1.0, 0.6])
     V, F = mg.irregular_ellipsoid(*abc, n_points=3000, seed=seed, twist=1.0)
-    h = mg.mean_edge_length(V, F)
+    h = mref.mean_edge_length(V, F)
     mesh = mesh_from_arrays((V, F))
     out = {}
     for weights in ("geometric", "combinatorial"):

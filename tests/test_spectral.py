@@ -20,19 +20,18 @@ What is checked, and against what:
 from __future__ import annotations
 
 import functools
-import os
 import warnings
 
 import numpy as np
 import pytest
 
 import meshgen as mg
-from conftest import DATA_DIR as DATA
+import mesh_reference as mref
 from conftest import core_mesh, run_beside_main_loop
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
 core = pytest.importorskip("nfield.core", reason="nfield.core is not importable")
-from nfield.core import DesignSession, DirectionConstraint, VectorConstraint  # noqa: E402
+from nfield.core import DesignSession, DirectionConstraint  # noqa: E402
 from nfield.core import spectral  # noqa: E402
 
 
@@ -391,7 +390,7 @@ def test_frozen_faces_use_the_exact_solver():
     s.set_direction(f, tangent(mesh, f, rng))
     before = s.solve()
     assert before.mode == "spectral"
-    C = mg.face_centroids(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64))
+    C = mref.face_centroids(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64))
     region = np.flatnonzero(np.linalg.norm(C - C[100], axis=1) < 0.1 * mesh.native.bounding_box_diagonal)
     s.begin_region(region)
     s.set_direction(100, tangent(mesh, 100, rng))

@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 import meshgen as mg
+import mesh_reference as mref
 from conftest import core_mesh, mesh_from_arrays
 
 nat = pytest.importorskip("nfield._native", reason="compiled module nfield._native is not built")
@@ -200,7 +201,7 @@ SMALL_PARAMS = [pytest.param(k, marks=pytest.mark.slow) if k == "torus_irregular
 
 
 def _user_field(V, F):
-    c = mg.face_centroids(V, F)
+    c = mref.face_centroids(V, F)
     return np.cross([0.2, 0.4, 1.0], c) + 0.3 * np.cos(2 * c)
 
 
@@ -221,7 +222,7 @@ def test_vector_spline_matches_dense_kkt(name, order, n):
     faces, dirs = _random_tangent_constraints(mesh, 5, seed=n + 3 * order)
     vecs = dirs * np.array([1.0, 2.0, 0.5, 1.5, 3.0])[:, None]
     cons = [core.VectorConstraint(int(f), tuple(v)) for f, v in zip(faces, vecs)]
-    E = mg.dense_from_coo(*ops.energy_matrix(order), nF)
+    E = mref.dense_from_coo(*ops.energy_matrix(order), nF)
     mass = np.asarray(ops.mass)
     vc = dict(zip(faces.tolist(), np.asarray(ops.tangent_to_representation(faces, vecs))))
     for strength in (0.1, 10.0):
@@ -294,7 +295,7 @@ def test_vector_spline_developable_meshes(name, order, n):
     assert np.array_equal(w[faces], d)
     assert np.isfinite(w).all() and res.lambda_ == 0.0
     if len(F) <= 1000:
-        E = mg.dense_from_coo(*ops.energy_matrix(order), len(F))
+        E = mref.dense_from_coo(*ops.energy_matrix(order), len(F))
         ref = _dense_vector_spline(E, np.asarray(ops.mass), 0.0, np.zeros(len(F), complex),
                                    dict(zip(faces.tolist(), d)))
         err = _rel(w, ref)
@@ -323,7 +324,7 @@ def test_direction_spline_matches_dense_kkt(name, order, n):
     nF = len(F)
     X = _user_field(V, F)
     align = np.asarray(ops.tangent_to_representation(np.arange(nF), X))
-    E = mg.dense_from_coo(*ops.energy_matrix(order), nF)
+    E = mref.dense_from_coo(*ops.energy_matrix(order), nF)
     mass = np.asarray(ops.mass)
     faces, dirs = _random_tangent_constraints(mesh, 6, seed=10 * n + order)
     d = np.asarray(ops.tangent_to_representation(faces, dirs))
@@ -479,7 +480,7 @@ def test_fig10_biharmonic_continues_rate_of_change():
     V, F = mg.icosphere(4)
     mesh = mesh_from_arrays((V, F))
     ops = nat.FieldOperators(mesh.native, n, "geometric")
-    c = mg.face_centroids(V, F)
+    c = mref.face_centroids(V, F)
     th, e_th, e_ph = _sphere_frame(c)
     s = th - np.pi / 2
     band = (s > 0) & (s < 0.32)
@@ -553,7 +554,7 @@ def _levels(base, levels):
 
 
 def _probe(ops, w, Vd, Fd, P):
-    f = mg.closest_faces(Vd, Fd, P)
+    f = mref.closest_faces(Vd, Fd, P)
     fr = np.asarray(ops.frames)[f]
     n = ops.n
     alpha = np.angle(w[f]) / n
@@ -585,7 +586,7 @@ def test_fig2_point_constraints_converge_only_biharmonic():
     for V, F in levels:
         mesh = mesh_from_arrays((V, F))
         ops = nat.FieldOperators(mesh.native, 1, "geometric")
-        cf = mg.closest_faces(V, F, cpts)
+        cf = mref.closest_faces(V, F, cpts)
         for order in (1, 2):
             res = core.solve(mesh, n=1, order=order, vector_constraints=[
                 core.VectorConstraint(int(f), tuple(v)) for f, v in zip(cf, cvec)])
@@ -612,7 +613,7 @@ def _ellipsoid_level(k):
 
 
 def _first_dirs_at(res, V, F, P):
-    f = mg.closest_faces(V, F, P)
+    f = mref.closest_faces(V, F, P)
     return res.all_directions()[f]
 
 
@@ -636,14 +637,14 @@ def test_strength_same_on_scaled_mesh():
                 a = core.solve(m1, n=n, order=order, align="curvature-max", strength=strength, constraints=cons)
                 b = core.solve(m2, n=n, order=order, align="curvature-max", strength=strength, constraints=cons)
                 assert abs(b.lambda_ * 1000 ** (2 * order) - a.lambda_) < 1e-9 * abs(a.lambda_)
-                ang = np.abs(mg.wrap_angle(np.angle(b.representation) - np.angle(a.representation)))
+                ang = np.abs(mref.wrap_angle(np.angle(b.representation) - np.angle(a.representation)))
                 assert ang.max() < 1e-6, (n, order, strength, ang.max())
 
 
 def _rough_user_field(V, F, freq=3.0):
     """A unit tangent-ish 3D field turning quickly along x (angle 3x + 2y in a frame built from the
     z axis): far from the smoothest field, so the strength really trades smoothness for alignment."""
-    c = mg.face_centroids(V, F)
+    c = mref.face_centroids(V, F)
     e1 = np.cross([0.0, 0.0, 1.0], c) + 1e-3
     e2 = np.cross(c, e1)
     e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
