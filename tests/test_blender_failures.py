@@ -15,14 +15,13 @@ pytestmark = pytest.mark.blender
 
 
 # ------------------------------------------------------------------------------------------ bad input (add-on layer)
-# The table of tests/test_bad_input_matrix.py (no bpy there), run through the installed add-on: settings through
+# The table of tests/bad_input_cases.py (no bpy, no nfield there), run through the installed add-on: settings through
 # the scripting API (nfield.blender.configure), constraints through the operators (the scripting API for an
 # index that is not a multiple of 1/n, which the operator's integer numerator cannot express), then
 # bpy.ops.nfield.solve(). The first step that fails must fail with an ERROR report matching the case and leave
 # the settings and the design exactly as they were before that step.
-from test_bad_input_matrix import CASES as BAD_INPUT_CASES  # noqa: E402
-from test_bad_input_matrix import check_field  # noqa: E402
-from test_bad_input_matrix import _sphere, _sphere_ring_vectors  # noqa: E402
+from bad_input_cases import CASES as BAD_INPUT_CASES  # noqa: E402
+from bad_input_cases import _sphere, _sphere_ring_vectors, check_field  # noqa: E402
 
 #: attributes are float32: unit length, tangency and constraint angles hold to float32 rounding (~1e-7) of
 #: coordinates and results; 1e-5 is far from any real violation (a wrong field is off by >= 1e-3)
