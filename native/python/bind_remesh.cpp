@@ -127,6 +127,7 @@ void bind_remesh(py::module_& m) {
         py::arg("changed_offsets") = c.changed_offsets, py::arg("fixed_offsets") = c.fixed_offsets,
         py::arg("cost") = c.cost, py::arg("moved_representatives") = r.moved_representatives,
         py::arg("phases") = c.phases, py::arg("augmentations") = c.augmentations,
+        py::arg("network_triangles") = c.network_triangles, py::arg("seconds_collapse") = c.seconds_collapse,
         py::arg("seconds_network") = c.seconds_network, py::arg("seconds_solve") = c.seconds_solve);
     py::dict t;
     t["setup"] = r.seconds_setup;
