@@ -71,7 +71,6 @@ py::dict extraction_dict(const ExtractionReport& r) {
   d["merged_short_links"] = r.merged_short_links;
   d["removed_dangling"] = r.removed_dangling;
   d["split_faces"] = r.split_faces;
-  d["boundary_holes"] = r.boundary_holes;
   d["dropped_large_faces"] = r.dropped_large_faces;
   d["open_walks"] = r.open_walks;
   d["removed_conflicting"] = r.removed_conflicting;

@@ -166,8 +166,11 @@ double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& 
 CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double min_jacobian) {
   CleanupReport report;
   std::vector<std::vector<int>> faces = faces_of(mesh);
-  // Doublets.
-  {
+  // Doublets, repeatedly (removing one lowers its neighbours' valences, which may make new ones).
+  for (int round = 0; round < 8; ++round) {
+    const int before = report.doublets;
+    rebuild(mesh, faces);
+    faces = faces_of(mesh);
     const VertexValence vv = vertex_valences(mesh);
     auto dir = directed_faces(faces);
     for (int v = 0; v < mesh.num_vertices(); ++v) {
@@ -204,6 +207,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
         dir[(static_cast<long long>(merged[j]) << 32) | static_cast<unsigned int>(merged[(j + 1) % merged.size()])] = f1;
       ++report.doublets;
     }
+    if (report.doublets == before) break;
   }
   // Triangle pairs and triangle + pentagon pairs, best first.
   rebuild(mesh, faces);

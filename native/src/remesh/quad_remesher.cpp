@@ -67,6 +67,8 @@ void check_options(const QuadRemeshOptions& o) {
   if (o.iterations < 1 || o.iterations > 1000) throw ParameterError("quad remesh: iterations must be in 1..1000");
   if (o.relax_iterations < 0 || o.relax_iterations > 100) throw ParameterError("quad remesh: relax_iterations must be in 0..100");
   if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
+  if (!(o.feature_field_angle_degrees >= 0 && o.feature_field_angle_degrees <= 45))
+    throw ParameterError("quad remesh: feature_field_angle must be in 0..45 degrees");
 }
 
 }  // namespace
@@ -144,7 +146,14 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.messages.push_back("non-manifold or non-orientable edges were cut: they become boundaries of the output");
 
   // 2. Features. Chains shorter than two lattice steps (tiny holes, noise) are not kept.
-  const Features features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
+  Features features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
+  const int num_sharp = features.num_sharp_edges;
+  const int off_field = keep_features_along_field(surface, features, directions,
+                                                  options.feature_field_angle_degrees, 2 * s);
+  if (off_field)
+    result.messages.push_back(std::to_string(num_sharp - features.num_sharp_edges) + " of " + std::to_string(num_sharp) +
+                              " sharp edges were not kept: the field crosses them at more than " +
+                              format(options.feature_field_angle_degrees) + " degrees");
   result.num_boundary_feature_edges = features.num_boundary_edges;
   result.num_sharp_feature_edges = features.num_sharp_edges;
   if (features.num_dropped_chains)

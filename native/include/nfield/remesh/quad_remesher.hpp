@@ -29,6 +29,7 @@ struct QuadRemeshOptions {
   bool pure_quads = false;           ///< one subdivision step: all faces become quads
   bool keep_boundary = true;         ///< boundary edges are feature curves
   double sharp_angle_degrees = 40;   ///< edges with a larger dihedral angle are feature curves (<= 0: none)
+  double feature_field_angle_degrees = 35;  ///< sharp edges further than this from the field are not kept
   std::uint64_t seed = 0;            ///< random lattice origins on the coarsest level
   int iterations = 10;               ///< Gauss-Seidel sweeps per hierarchy level
   int max_face_size = 12;            ///< larger extracted faces are dropped
