@@ -128,6 +128,11 @@ void bind_remesh(py::module_& m) {
         py::arg("phases") = c.phases, py::arg("augmentations") = c.augmentations,
         py::arg("network_triangles") = c.network_triangles, py::arg("seconds_collapse") = c.seconds_collapse,
         py::arg("seconds_network") = c.seconds_network, py::arg("seconds_solve") = c.seconds_solve);
+    d["untangle"] = py::dict(py::arg("flipped_before") = r.untangle.flipped_before,
+                             py::arg("flipped_after") = r.untangle.flipped_after,
+                             py::arg("moved_vertices") = r.untangle.moved_vertices,
+                             py::arg("released_features") = r.untangle.released_features, py::arg("rounds") = r.untangle.rounds,
+                             py::arg("split_faces") = r.untangle.split_faces);
     py::dict t;
     t["setup"] = r.seconds_setup;
     t["hierarchy"] = r.seconds_hierarchy;

@@ -337,6 +337,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "hierarchy_levels": int(r["num_levels"]),
         "extraction": dict(r["extraction"]),
         "cleanup": dict(r["cleanup"]),
+        "untangle": dict(r["untangle"]),
         "position_singularities": dict(r["position_singularities"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,

@@ -52,6 +52,64 @@ void rebuild(PolygonMesh& m, const std::vector<std::vector<int>>& faces) {
     if (!f.empty()) m.add_face(f);
 }
 
+/// Removes interior doublets (valence-2 vertices: two faces that share both edges of a vertex cannot both
+/// be unfolded there on a smooth surface), repeatedly, since removing one lowers its neighbours' valences.
+/// Feature corners stay (the tip of a wedge is two faces meeting at a valence-2 corner) unless their two
+/// edges are nearly straight (within about 30 degrees: a corner of a feature on a smooth part, where the
+/// two faces would each have a straight angle). Returns the number removed.
+int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  int removed = 0;
+  for (int round = 0; round < 8; ++round) {
+    const int before = removed;
+    rebuild(mesh, faces);
+    faces = faces_of(mesh);
+    const VertexValence vv = vertex_valences(mesh);
+    auto dir = directed_faces(faces);
+    for (int v = 0; v < mesh.num_vertices(); ++v) {
+      if (vv.valence[v] != 2 || vv.boundary[v]) continue;
+      // Faces around v: find a face containing v, its neighbours a (prev) and b (next).
+      int f1 = -1;
+      for (int f = 0; f < static_cast<int>(faces.size()) && f1 < 0; ++f)
+        if (std::find(faces[f].begin(), faces[f].end(), v) != faces[f].end()) f1 = f;
+      if (f1 < 0) continue;
+      const auto& p = faces[f1];
+      const int k = static_cast<int>(p.size());
+      const int i = static_cast<int>(std::find(p.begin(), p.end(), v) - p.begin());
+      const int b = p[(i + 1) % k];
+      if (kind[v] == kCorner) {  // a corner stays unless its two edges run straight through it
+        const Vec3 ea = mesh.positions[p[(i + k - 1) % k]] - mesh.positions[v], eb = mesh.positions[b] - mesh.positions[v];
+        if (!(ea.dot(eb) < -0.85 * ea.norm() * eb.norm())) continue;
+      }
+      auto it = dir.find((static_cast<long long>(b) << 32) | static_cast<unsigned int>(v));
+      if (it == dir.end()) continue;
+      const int f2 = it->second;
+      if (f2 == f1) continue;
+      std::vector<int> merged = merge_across(faces[f1], faces[f2], v, b);
+      // merged reads b .. a v a ..: drop v and the repeated a.
+      merged.erase(std::remove(merged.begin(), merged.end(), v), merged.end());
+      std::vector<int> dedup;
+      for (size_t j = 0; j < merged.size(); ++j)
+        if (merged[j] != merged[(j + 1) % merged.size()]) dedup.push_back(merged[j]);
+      merged = dedup;
+      std::vector<int> sorted = merged;
+      std::sort(sorted.begin(), sorted.end());
+      if (merged.size() < 3 || std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) continue;
+      for (int f : {f1, f2})
+        for (size_t j = 0; j < faces[f].size(); ++j)
+          dir.erase((static_cast<long long>(faces[f][j]) << 32) | static_cast<unsigned int>(faces[f][(j + 1) % faces[f].size()]));
+      faces[f1] = merged;
+      faces[f2].clear();
+      for (size_t j = 0; j < merged.size(); ++j)
+        dir[(static_cast<long long>(merged[j]) << 32) | static_cast<unsigned int>(merged[(j + 1) % merged.size()])] = f1;
+      ++removed;
+    }
+    if (removed == before) break;
+  }
+  rebuild(mesh, faces);
+  return removed;
+}
+
 }  // namespace
 
 int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int max_quads) {
@@ -166,49 +224,9 @@ double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& 
 CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double min_jacobian) {
   CleanupReport report;
   std::vector<std::vector<int>> faces = faces_of(mesh);
-  // Doublets, repeatedly (removing one lowers its neighbours' valences, which may make new ones).
-  for (int round = 0; round < 8; ++round) {
-    const int before = report.doublets;
-    rebuild(mesh, faces);
-    faces = faces_of(mesh);
-    const VertexValence vv = vertex_valences(mesh);
-    auto dir = directed_faces(faces);
-    for (int v = 0; v < mesh.num_vertices(); ++v) {
-      if (vv.valence[v] != 2 || vv.boundary[v] || kind[v] == kCorner) continue;
-      // Faces around v: find a face containing v, its neighbours a (prev) and b (next).
-      int f1 = -1;
-      for (int f = 0; f < static_cast<int>(faces.size()) && f1 < 0; ++f)
-        if (std::find(faces[f].begin(), faces[f].end(), v) != faces[f].end()) f1 = f;
-      if (f1 < 0) continue;
-      const auto& p = faces[f1];
-      const int k = static_cast<int>(p.size());
-      const int i = static_cast<int>(std::find(p.begin(), p.end(), v) - p.begin());
-      const int b = p[(i + 1) % k];
-      auto it = dir.find((static_cast<long long>(b) << 32) | static_cast<unsigned int>(v));
-      if (it == dir.end()) continue;
-      const int f2 = it->second;
-      if (f2 == f1) continue;
-      std::vector<int> merged = merge_across(faces[f1], faces[f2], v, b);
-      // merged reads b .. a v a ..: drop v and the repeated a.
-      merged.erase(std::remove(merged.begin(), merged.end(), v), merged.end());
-      std::vector<int> dedup;
-      for (size_t j = 0; j < merged.size(); ++j)
-        if (merged[j] != merged[(j + 1) % merged.size()]) dedup.push_back(merged[j]);
-      merged = dedup;
-      std::vector<int> sorted = merged;
-      std::sort(sorted.begin(), sorted.end());
-      if (merged.size() < 3 || std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) continue;
-      for (int f : {f1, f2})
-        for (size_t j = 0; j < faces[f].size(); ++j)
-          dir.erase((static_cast<long long>(faces[f][j]) << 32) | static_cast<unsigned int>(faces[f][(j + 1) % faces[f].size()]));
-      faces[f1] = merged;
-      faces[f2].clear();
-      for (size_t j = 0; j < merged.size(); ++j)
-        dir[(static_cast<long long>(merged[j]) << 32) | static_cast<unsigned int>(merged[(j + 1) % merged.size()])] = f1;
-      ++report.doublets;
-    }
-    if (report.doublets == before) break;
-  }
+  rebuild(mesh, faces);
+  report.doublets = remove_doublets(mesh, kind);
+  faces = faces_of(mesh);
   // Triangle pairs and triangle + pentagon pairs, best first.
   rebuild(mesh, faces);
   faces = faces_of(mesh);
@@ -274,6 +292,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
   }
   rebuild(mesh, faces);
   report.triangle_strips = pair_triangles_through_strips(mesh, min_jacobian);
+  report.doublets += remove_doublets(mesh, kind);  // merging triangle pairs can leave valence-2 vertices
   const std::vector<int> old = compact_vertices(mesh);
   std::vector<char> k2(old.size());
   for (size_t i = 0; i < old.size(); ++i) k2[i] = kind[old[i]];

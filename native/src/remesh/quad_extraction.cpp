@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <map>
 #include <unordered_map>
 
 namespace nfield::remesh {
@@ -37,6 +38,7 @@ void split_walk(const std::vector<int>& walk, std::vector<std::vector<int>>& loo
 ProjectionTargets make_projection_targets(const RemeshSurface& s, const Features& f) {
   ProjectionTargets t;
   t.surface = TriangleTree(s.positions, s.triangles);
+  t.surface_normals = surface_normals(s.positions, s.triangles);
   std::vector<std::array<int, 3>> segs;
   for (size_t e = 0; e < s.edges.size(); ++e)
     if (f.edge_is_feature[e]) segs.push_back({s.edges[e][0], s.edges[e][1], s.edges[e][1]});
@@ -74,10 +76,16 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
     pos.assign(C, Vec3::Zero());
     nrm.assign(C, Vec3::Zero());
     std::vector<double> w(C, 0.0);
+    // Only the members of the strongest feature kind place a cluster: their lattice points satisfy the
+    // feature constraints (on the corner, on the curve), the other members' copies of the same lattice
+    // point differ from them by their mismatch.
+    std::vector<char> strongest(C, kNoFeature);
+    for (int v = 0; v < V; ++v) strongest[cluster_of[v]] = std::max(strongest[cluster_of[v]], features.vertex_kind[v]);
     for (int v = 0; v < V; ++v) {
       const double a = L.area[v] > 0 ? L.area[v] : 1e-300;
-      pos[cluster_of[v]] += a * L.p[v];
       nrm[cluster_of[v]] += a * L.n[v];
+      if (features.vertex_kind[v] != strongest[cluster_of[v]]) continue;
+      pos[cluster_of[v]] += a * L.p[v];
       w[cluster_of[v]] += a;
     }
     for (int c = 0; c < C; ++c) {
@@ -228,17 +236,47 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   const std::vector<int> old_index = compact_vertices(out);
 
   // Feature kind per output vertex (strongest member), and projection.
+  // A cluster lies on a feature when one of its members does and its lattice point is on the feature (the
+  // constraints put the lattice points of a feature's vertices on it): a cluster that merely reaches a
+  // feature with one member, its lattice point a row away, is not pulled onto it.
   std::vector<char> cluster_kind(C, kNoFeature);
   for (int v = 0; v < V; ++v) cluster_kind[cluster_of[v]] = std::max(cluster_kind[cluster_of[v]], features.vertex_kind[v]);
-  std::vector<char> kind(out.num_vertices());
-  for (int v = 0; v < out.num_vertices(); ++v) kind[v] = cluster_kind[copied_from[old_index[v]]];
-  // Corners: snap to the member corner vertex nearest to the cluster position.
+  const double on_feature = 0.45 * scale;
+  for (int c = 0; c < C; ++c)
+    if (cluster_kind[c] != kNoFeature && !targets.feature_edges.empty() &&
+        targets.feature_edges.closest(pos[c]).squared_distance > on_feature * on_feature)
+      cluster_kind[c] = kNoFeature;
+  // Corners: snap to the member corner vertex nearest to the cluster position (when that is near).
   std::vector<int> corner_of(C, -1);
   for (int v = 0; v < V; ++v) {
     if (features.vertex_kind[v] != kCorner) continue;
     const int c = cluster_of[v];
+    if ((s.positions[v] - pos[c]).norm() > on_feature) continue;
     if (corner_of[c] < 0 || (s.positions[v] - pos[c]).norm() < (s.positions[corner_of[c]] - pos[c]).norm()) corner_of[c] = v;
   }
+  // One output vertex per corner point: when two clusters claim the same corner (or two copies of it made
+  // by the cut at the same place), the nearer one takes it.
+  {
+    std::map<std::array<double, 3>, int> owner;
+    for (int c = 0; c < C; ++c) {
+      if (corner_of[c] < 0) continue;
+      const Vec3& at = s.positions[corner_of[c]];
+      auto [it, inserted] = owner.emplace(std::array<double, 3>{at.x(), at.y(), at.z()}, c);
+      if (inserted) continue;
+      const Vec3& x = s.positions[corner_of[c]];
+      const int other = it->second;
+      if ((pos[c] - x).norm() < (pos[other] - x).norm()) {
+        corner_of[other] = -1;
+        it->second = c;
+      } else {
+        corner_of[c] = -1;
+      }
+    }
+  }
+  for (int c = 0; c < C; ++c)
+    if (cluster_kind[c] == kCorner && corner_of[c] < 0) cluster_kind[c] = kCurve;
+  std::vector<char> kind(out.num_vertices());
+  for (int v = 0; v < out.num_vertices(); ++v) kind[v] = cluster_kind[copied_from[old_index[v]]];
   project_vertices(out, kind, targets);
   for (int v = 0; v < out.num_vertices(); ++v) {
     const int c = copied_from[old_index[v]];

@@ -11,6 +11,7 @@
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
+#include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
 namespace nfield::remesh {
@@ -55,6 +56,21 @@ long long euler_characteristic(const PolygonMesh& m) {
 long long euler_characteristic(const RemeshSurface& s) {
   return static_cast<long long>(s.num_vertices()) - static_cast<long long>(s.edges.size()) +
          static_cast<long long>(s.triangles.size());
+}
+
+/// untangle_flipped_faces, then (when `split`) split_flipped_faces for what is left and one more untangle.
+UntangleReport untangle(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, bool split) {
+  UntangleReport r = untangle_flipped_faces(mesh, kind, targets);
+  if (!split || r.flipped_after == 0) return r;
+  r.split_faces = split_flipped_faces(mesh, targets);
+  if (r.split_faces) {
+    const UntangleReport again = untangle_flipped_faces(mesh, kind, targets);
+    r.flipped_after = again.flipped_after;
+    r.moved_vertices += again.moved_vertices;
+    r.released_features += again.released_features;
+    r.rounds += again.rounds;
+  }
+  return r;
 }
 
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
@@ -264,16 +280,22 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   report(0.95);
 
   // 7. Pure quads.
+  UntangleReport before_subdivision;
   if (options.pure_quads) {
+    before_subdivision = untangle(result.mesh, result.vertex_feature_kind, targets, true);
     std::vector<int> kind;
     std::vector<std::array<int, 2>> edge_of;
     PolygonMesh fine = subdivide_to_quads(result.mesh, &kind, &edge_of);
     std::vector<char> fkind(fine.num_vertices(), kNoFeature);
     for (int v = 0; v < fine.num_vertices(); ++v) {
       if (kind[v] == 0) fkind[v] = result.vertex_feature_kind[v];
-      // A midpoint lies on a feature curve when both ends do (corner or curve).
-      else if (kind[v] == 1 && result.vertex_feature_kind[edge_of[v][0]] && result.vertex_feature_kind[edge_of[v][1]])
-        fkind[v] = kCurve;
+      // A midpoint lies on a feature curve when both ends do (corner or curve) and the edge runs along a
+      // feature, not across a band between two of them: its midpoint is near a feature edge.
+      else if (kind[v] == 1 && result.vertex_feature_kind[edge_of[v][0]] && result.vertex_feature_kind[edge_of[v][1]] &&
+               !targets.feature_edges.empty()) {
+        const double length = (fine.positions[edge_of[v][0]] - fine.positions[edge_of[v][1]]).norm();
+        if (std::sqrt(targets.feature_edges.closest(fine.positions[v]).squared_distance) < 0.25 * length) fkind[v] = kCurve;
+      }
     }
     std::vector<char> project_kind = fkind;
     for (int v = 0; v < fine.num_vertices(); ++v)
@@ -285,6 +307,20 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.vertex_feature_kind = std::move(fkind);
     relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   }
+  // 8. Guarded last step: vertices of flipped faces moved until none is left (quad_untangle.hpp); faces that
+  //    stay flipped split along a diagonal. For pure quads this runs on the quad-dominant mesh before the
+  //    subdivision too (a split face still becomes quads there), and after it without splits.
+  result.untangle = untangle(result.mesh, result.vertex_feature_kind, targets, !options.pure_quads);
+  if (options.pure_quads) {
+    result.untangle.flipped_before += before_subdivision.flipped_before;
+    result.untangle.moved_vertices += before_subdivision.moved_vertices;
+    result.untangle.released_features += before_subdivision.released_features;
+    result.untangle.split_faces = before_subdivision.split_faces;
+  }
+  if (result.untangle.flipped_after)
+    result.messages.push_back(std::to_string(result.untangle.flipped_after) +
+                              " face(s) are still flipped (a corner turned against the surface): the target is too "
+                              "coarse for a part of the mesh; raise the face count");
   result.seconds_extraction = seconds_since(t0);
   if (result.extraction.removed_conflicting)
     result.messages.push_back(std::to_string(result.extraction.removed_conflicting) +

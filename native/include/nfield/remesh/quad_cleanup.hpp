@@ -2,8 +2,10 @@
 // faces. Every operation keeps the mesh manifold and consistently oriented (it only merges faces across
 // an interior edge or re-splits the union of two faces).
 //
-//  - Doublets: an interior vertex with two edges lies between two faces that share both of its edges;
-//    the vertex is removed and the two faces become one.
+//  - Doublets: an interior vertex with two edges lies between two faces that share both of its edges (and
+//    on a smooth surface one of them has a reflex corner there); the vertex is removed and the two faces
+//    become one, unless it is a feature corner (the tip of a wedge). Repeated, and once more after the
+//    triangle steps (merging a triangle pair lowers two valences).
 //  - Triangle pairs: two triangles sharing an edge become one quad when that quad is not folded
 //    (scaled Jacobian above `min_jacobian`), best pairs first.
 //  - Triangle + pentagon: their union (a hexagon) is re-split into two quads along a diagonal that does not

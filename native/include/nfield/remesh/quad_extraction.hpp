@@ -46,6 +46,7 @@ struct ExtractionReport {
 /// The surface's projection targets: the whole surface and its feature edges.
 struct ProjectionTargets {
   TriangleTree surface;
+  SurfaceNormals surface_normals;  ///< of `surface` (corner Jacobians, quad_stats.hpp)
   TriangleTree feature_edges;  ///< each feature edge as a degenerate triangle (a, b, b)
 };
 ProjectionTargets make_projection_targets(const RemeshSurface& surface, const Features& features);

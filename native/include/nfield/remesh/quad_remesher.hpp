@@ -21,6 +21,7 @@
 #include "nfield/remesh/position_field.hpp"
 #include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
+#include "nfield/remesh/quad_untangle.hpp"
 
 namespace nfield::remesh {
 
@@ -50,6 +51,7 @@ struct QuadRemeshResult {
   ExtractionReport extraction;
   int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
   CancellationReport cancellation;        ///< position singularities before / after the flow
+  UntangleReport untangle;                ///< flipped faces before / after the last step
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
