@@ -312,7 +312,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
-    r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), h, pure_quads=bool(pure_quads),
+    r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quads=bool(pure_quads),
                              keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle, seed=int(seed),
                              iterations=int(iterations), relax_iterations=int(relax_iterations),
                              refuse_small_components=bool(strict),

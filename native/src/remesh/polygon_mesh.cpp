@@ -256,6 +256,12 @@ std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh) {
   return tris;
 }
 
+Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i = 0; i < mesh.face_size(f); ++i) c += mesh.positions[mesh.face(f)[i]];
+  return c / mesh.face_size(f);
+}
+
 Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f) {
   const int k = mesh.face_size(f);
   const int* v = mesh.face(f);

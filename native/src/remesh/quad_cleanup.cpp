@@ -333,14 +333,10 @@ void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Proj
     std::vector<Vec3> sum(V, Vec3::Zero());
     std::vector<int> count(V, 0);
     for (int f = 0; f < mesh.num_faces(); ++f) {
-      const int k = mesh.face_size(f);
-      const int* v = mesh.face(f);
-      Vec3 c = Vec3::Zero();
-      for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
-      c /= k;
-      for (int i = 0; i < k; ++i) {
-        sum[v[i]] += c;
-        ++count[v[i]];
+      const Vec3 c = polygon_centroid(mesh, f);
+      for (int i = 0; i < mesh.face_size(f); ++i) {
+        sum[mesh.face(f)[i]] += c;
+        ++count[mesh.face(f)[i]];
       }
     }
     for (int v = 0; v < V; ++v) {

@@ -152,9 +152,7 @@ double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree) {
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const int k = mesh.face_size(f);
     const int* v = mesh.face(f);
-    Vec3 c = Vec3::Zero();
-    for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
-    c /= k;
+    const Vec3 c = polygon_centroid(mesh, f);
     sample(c);
     for (int i = 0; i < k; ++i) {
       sample(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));

@@ -68,6 +68,9 @@ PolygonMesh subdivide_to_quads(const PolygonMesh& mesh, std::vector<int>* kind_o
 /// Fan triangulation of every face from its first vertex (triangles keep the face's orientation).
 std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh);
 
+/// Mean of the vertices of face f (mesh units).
+Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f);
+
 /// Unit normal of a polygon by Newell's formula (zero for a degenerate polygon); units: none.
 Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f);
 
