@@ -72,7 +72,7 @@ py::dict extraction_dict(const ExtractionReport& r) {
   return named("clusters", r.clusters, "links", r.links, "merged_short_links", r.merged_short_links,
                "removed_dangling", r.removed_dangling, "split_faces", r.split_faces, "dropped_large_faces",
                r.dropped_large_faces, "open_walks", r.open_walks, "removed_conflicting", r.removed_conflicting,
-               "split_vertices", r.split_vertices);
+               "dropped_scraps", r.dropped_scraps, "split_vertices", r.split_vertices);
 }
 
 /// The remesher's options from keyword arguments: each name sets the QuadRemeshOptions member of that name
@@ -134,7 +134,8 @@ void bind_remesh(py::module_& m) {
     const UntangleReport& u = r.untangle;
     d["untangle"] = named("flipped_before", u.flipped_before, "flipped_after", u.flipped_after, "moved_vertices",
                           u.moved_vertices, "released_features", u.released_features, "rounds", u.rounds,
-                          "split_faces", u.split_faces);
+                          "split_faces", u.split_faces, "removed_doublets", u.removed_doublets,
+                          "collapsed_edges", u.collapsed_edges, "dropped_scraps", u.dropped_scraps);
     d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
                          "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;

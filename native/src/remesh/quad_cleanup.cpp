@@ -56,8 +56,8 @@ void rebuild(PolygonMesh& m, const std::vector<std::vector<int>>& faces) {
 /// be unfolded there on a smooth surface), repeatedly, since removing one lowers its neighbours' valences.
 /// Feature corners stay (the tip of a wedge is two faces meeting at a valence-2 corner) unless their two
 /// edges are nearly straight (within about 30 degrees: a corner of a feature on a smooth part, where the
-/// two faces would each have a straight angle). Returns the number removed.
-int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind) {
+/// two faces would each have a straight angle), or listed in `corners_too`. Returns the number removed.
+int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std::vector<char>* corners_too) {
   std::vector<std::vector<int>> faces = faces_of(mesh);
   int removed = 0;
   for (int round = 0; round < 8; ++round) {
@@ -67,7 +67,24 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind) {
     const VertexValence vv = vertex_valences(mesh);
     auto dir = directed_faces(faces);
     for (int v = 0; v < mesh.num_vertices(); ++v) {
-      if (vv.valence[v] != 2 || vv.boundary[v]) continue;
+      if (vv.valence[v] != 2) continue;
+      if (vv.boundary[v]) {
+        // A boundary vertex in one face where the boundary runs straight: the face has a straight angle
+        // there (a corner turned by less than 30 degrees), and loses the vertex (unless it is a triangle).
+        for (auto& face : faces) {
+          const int k = static_cast<int>(face.size());
+          const int i = static_cast<int>(std::find(face.begin(), face.end(), v) - face.begin());
+          if (i == k) continue;
+          const Vec3 ea = mesh.positions[face[(i + k - 1) % k]] - mesh.positions[v];
+          const Vec3 eb = mesh.positions[face[(i + 1) % k]] - mesh.positions[v];
+          if (k >= 4 && ea.dot(eb) < -0.85 * ea.norm() * eb.norm()) {
+            face.erase(face.begin() + i);
+            ++removed;
+          }
+          break;
+        }
+        continue;
+      }
       // Faces around v: find a face containing v, its neighbours a (prev) and b (next).
       int f1 = -1;
       for (int f = 0; f < static_cast<int>(faces.size()) && f1 < 0; ++f)
@@ -77,7 +94,7 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind) {
       const int k = static_cast<int>(p.size());
       const int i = static_cast<int>(std::find(p.begin(), p.end(), v) - p.begin());
       const int b = p[(i + 1) % k];
-      if (kind[v] == kCorner) {  // a corner stays unless its two edges run straight through it
+      if (kind[v] == kCorner && !(corners_too && (*corners_too)[v])) {  // stays unless its edges run straight
         const Vec3 ea = mesh.positions[p[(i + k - 1) % k]] - mesh.positions[v], eb = mesh.positions[b] - mesh.positions[v];
         if (!(ea.dot(eb) < -0.85 * ea.norm() * eb.norm())) continue;
       }
@@ -86,8 +103,13 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind) {
       const int f2 = it->second;
       if (f2 == f1) continue;
       std::vector<int> merged = merge_across(faces[f1], faces[f2], v, b);
-      // merged reads b .. a v a ..: drop v and the repeated a.
-      merged.erase(std::remove(merged.begin(), merged.end(), v), merged.end());
+      // merged reads b .. a v a ..: drop v and the repeated a. Other valence-2 vertices the two faces share
+      // (a chain of doublets along their common border) go with it.
+      merged.erase(std::remove_if(merged.begin(), merged.end(), [&](int w) {
+                     return w == v || (vv.valence[w] == 2 && !vv.boundary[w] &&
+                                       std::count(faces[f1].begin(), faces[f1].end(), w) &&
+                                       std::count(faces[f2].begin(), faces[f2].end(), w));
+                   }), merged.end());
       std::vector<int> dedup;
       for (size_t j = 0; j < merged.size(); ++j)
         if (merged[j] != merged[(j + 1) % merged.size()]) dedup.push_back(merged[j]);
@@ -111,6 +133,10 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind) {
 }
 
 }  // namespace
+
+int remove_doublets_at(PolygonMesh& mesh, const std::vector<char>& kind, const std::vector<char>& vertices) {
+  return remove_doublets(mesh, kind, &vertices);
+}
 
 int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int max_quads) {
   std::vector<std::vector<int>> faces = faces_of(mesh);
@@ -225,7 +251,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
   CleanupReport report;
   std::vector<std::vector<int>> faces = faces_of(mesh);
   rebuild(mesh, faces);
-  report.doublets = remove_doublets(mesh, kind);
+  report.doublets = remove_doublets(mesh, kind, nullptr);
   faces = faces_of(mesh);
   // Triangle pairs and triangle + pentagon pairs, best first.
   rebuild(mesh, faces);
@@ -292,7 +318,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
   }
   rebuild(mesh, faces);
   report.triangle_strips = pair_triangles_through_strips(mesh, min_jacobian);
-  report.doublets += remove_doublets(mesh, kind);  // merging triangle pairs can leave valence-2 vertices
+  report.doublets += remove_doublets(mesh, kind, nullptr);  // merging triangle pairs can leave valence-2 vertices
   const std::vector<int> old = compact_vertices(mesh);
   std::vector<char> k2(old.size());
   for (size_t i = 0; i < old.size(); ++i) k2[i] = kind[old[i]];
@@ -330,18 +356,25 @@ int split_large_faces(PolygonMesh& mesh, std::vector<char>& kind, const Projecti
 void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations) {
   const int V = mesh.num_vertices();
   for (int it = 0; it < iterations; ++it) {
-    std::vector<Vec3> sum(V, Vec3::Zero());
+    std::vector<Vec3> sum(V, Vec3::Zero()), normal(V, Vec3::Zero());
     std::vector<int> count(V, 0);
     for (int f = 0; f < mesh.num_faces(); ++f) {
       const Vec3 c = polygon_centroid(mesh, f);
+      const Vec3 n = polygon_normal(mesh, f);
       for (int i = 0; i < mesh.face_size(f); ++i) {
         sum[mesh.face(f)[i]] += c;
+        normal[mesh.face(f)[i]] += n;
         ++count[mesh.face(f)[i]];
       }
     }
     for (int v = 0; v < V; ++v) {
       if (count[v] == 0 || kind[v] == kCorner) continue;
-      mesh.positions[v] = 0.5 * mesh.positions[v] + 0.5 * sum[v] / count[v];
+      // Tangential: the move keeps no part along the vertex's normal, so the vertex stays near the surface
+      // and its projection near where it was (on a fingertip the centroids lie inside the part, and their
+      // nearest surface point would be the tip for every vertex around it).
+      Vec3 d = 0.5 * (sum[v] / count[v] - mesh.positions[v]);
+      if (normal[v].norm() > 0) d -= normal[v].normalized() * normal[v].normalized().dot(d);
+      mesh.positions[v] += d;
     }
     project_vertices(mesh, kind, targets);
   }

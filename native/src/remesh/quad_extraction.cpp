@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <map>
 #include <unordered_map>
 
 namespace nfield::remesh {
@@ -233,6 +232,10 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   report.removed_conflicting = remove_conflicting_faces(out);
   std::vector<int> copied_from;
   report.split_vertices = split_pinched_vertices(out, &copied_from);
+  // Scraps: pieces of fewer than 4 faces, cut off where conflicting faces were left out or pinched off at a
+  // vertex (every component of the surface is a few lattice cells at least, so a piece this small is not
+  // one of them).
+  report.dropped_scraps = remove_small_pieces(out, 4);
   const std::vector<int> old_index = compact_vertices(out);
 
   // Feature kind per output vertex (strongest member), and projection.
@@ -254,23 +257,28 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
     if ((s.positions[v] - pos[c]).norm() > on_feature) continue;
     if (corner_of[c] < 0 || (s.positions[v] - pos[c]).norm() < (s.positions[corner_of[c]] - pos[c]).norm()) corner_of[c] = v;
   }
-  // One output vertex per corner point: when two clusters claim the same corner (or two copies of it made
-  // by the cut at the same place), the nearer one takes it.
+  // One output vertex per corner point: when two clusters claim corners closer than a quarter of the
+  // spacing (the same corner, a copy of it made by the cut, or a tight group of feature ends), the one
+  // nearer to its corner takes it and the other is not snapped (it would make a degenerate face).
   {
-    std::map<std::array<double, 3>, int> owner;
+    std::vector<int> claimed;  // clusters owning a corner so far
     for (int c = 0; c < C; ++c) {
       if (corner_of[c] < 0) continue;
-      const Vec3& at = s.positions[corner_of[c]];
-      auto [it, inserted] = owner.emplace(std::array<double, 3>{at.x(), at.y(), at.z()}, c);
-      if (inserted) continue;
       const Vec3& x = s.positions[corner_of[c]];
-      const int other = it->second;
-      if ((pos[c] - x).norm() < (pos[other] - x).norm()) {
-        corner_of[other] = -1;
-        it->second = c;
-      } else {
-        corner_of[c] = -1;
+      bool keep = true;
+      for (int& other : claimed) {
+        const Vec3& y = s.positions[corner_of[other]];
+        if ((x - y).norm() >= 0.25 * scale) continue;
+        if ((pos[c] - x).norm() < (pos[other] - y).norm()) {
+          corner_of[other] = -1;
+          other = c;
+        } else {
+          keep = false;
+        }
+        break;
       }
+      if (!keep) corner_of[c] = -1;
+      else if (std::find(claimed.begin(), claimed.end(), c) == claimed.end()) claimed.push_back(c);
     }
   }
   for (int c = 0; c < C; ++c)
@@ -287,11 +295,46 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
 }
 
 void project_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets) {
+  // The side each vertex faces: the sum of its faces' Newell vectors (the mesh is consistently oriented).
+  std::vector<Vec3> facing(mesh.num_vertices(), Vec3::Zero());
+  std::vector<double> reach(mesh.num_vertices(), 0.0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    Vec3 n = Vec3::Zero();
+    for (int i = 0; i < k; ++i) n += mesh.positions[v[i]].cross(mesh.positions[v[(i + 1) % k]]);
+    for (int i = 0; i < k; ++i) {
+      facing[v[i]] += n;
+      reach[v[i]] = std::max(reach[v[i]], (mesh.positions[v[(i + 1) % k]] - mesh.positions[v[i]]).norm());
+    }
+  }
   for (int v = 0; v < mesh.num_vertices(); ++v) {
     const Vec3 p = mesh.positions[v];
     const bool on_feature = v < static_cast<int>(kind.size()) && kind[v] != kNoFeature && !targets.feature_edges.empty();
-    const auto hit = on_feature ? targets.feature_edges.closest(p) : targets.surface.closest(p);
-    if (hit.triangle >= 0) mesh.positions[v] = hit.point;
+    if (on_feature) {
+      const auto hit = targets.feature_edges.closest(p);
+      if (hit.triangle >= 0) mesh.positions[v] = hit.point;
+      continue;
+    }
+    auto hit = targets.surface.closest(p);
+    if (hit.triangle < 0) continue;
+    const Vec3 side = facing[v].norm() > 0 ? Vec3(facing[v].normalized()) : Vec3::Zero();
+    if (side.squaredNorm() > 0 && targets.surface.normal_at(hit, targets.surface_normals).dot(side) < 0.3) {
+      // The nearest point is on a sheet facing the other way (a part thinner than a face): the nearest point
+      // seen from a little outside or inside along the face side that does face this way is taken instead.
+      double best = HUGE_VAL;
+      for (double d : {0.25, 0.5, 1.0})
+        for (double sign : {1.0, -1.0}) {
+          const auto other = targets.surface.closest(p + sign * d * reach[v] * side);
+          if (other.triangle < 0 || targets.surface.normal_at(other, targets.surface_normals).dot(side) < 0.3) continue;
+          const double dist = (other.point - p).squaredNorm();
+          if (dist < best) {
+            best = dist;
+            hit = other;
+          }
+        }
+    }
+    mesh.positions[v] = hit.point;
   }
 }
 

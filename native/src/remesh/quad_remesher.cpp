@@ -58,18 +58,55 @@ long long euler_characteristic(const RemeshSurface& s) {
          static_cast<long long>(s.triangles.size());
 }
 
-/// untangle_flipped_faces, then (when `split`) split_flipped_faces for what is left and one more untangle.
-UntangleReport untangle(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, bool split) {
-  UntangleReport r = untangle_flipped_faces(mesh, kind, targets);
-  if (!split || r.flipped_after == 0) return r;
-  r.split_faces = split_flipped_faces(mesh, targets);
-  if (r.split_faces) {
-    const UntangleReport again = untangle_flipped_faces(mesh, kind, targets);
-    r.flipped_after = again.flipped_after;
-    r.moved_vertices += again.moved_vertices;
-    r.released_features += again.released_features;
-    r.rounds += again.rounds;
+/// untangle_flipped_faces; then, when `change_faces`, for faces still flipped their valence-2 vertices
+/// (feature corners too) removed and split_flipped_faces, each followed by one more untangle. Unused
+/// vertices are dropped at the end (kind follows).
+UntangleReport untangle(PolygonMesh& mesh, std::vector<char>& kind, const ProjectionTargets& targets, bool change_faces,
+                        double spacing, double poor = 0) {
+  int collapsed = 0;
+  if (change_faces) {
+    // Vertices that landed on one point (two lattice points projected onto the tip of a part thinner than a
+    // face) are one vertex: no move can open a face whose corners all sit there.
+    std::vector<int> into;
+    collapsed = collapse_short_edges(mesh, 0.02 * spacing, &into);
+    if (collapsed) {
+      std::vector<char> merged_kind(into.size(), kNoFeature);
+      for (size_t v = 0; v < into.size(); ++v) {
+        const char k = v < kind.size() ? kind[v] : kind[into[v]];
+        merged_kind[v] = k;
+        merged_kind[into[v]] = std::max(merged_kind[into[v]], k);
+      }
+      kind = std::move(merged_kind);
+    }
   }
+  UntangleReport r = untangle_flipped_faces(mesh, kind, targets);
+  r.collapsed_edges = collapsed;
+  auto again = [&]() {
+    const UntangleReport more = untangle_flipped_faces(mesh, kind, targets);
+    r.flipped_after = more.flipped_after;
+    r.moved_vertices += more.moved_vertices;
+    r.released_features += more.released_features;
+    r.rounds += more.rounds;
+  };
+  const std::vector<double> jac = change_faces ? scaled_jacobians_on(mesh, targets) : std::vector<double>();
+  const bool any_poor = std::any_of(jac.begin(), jac.end(), [&](double q) { return q <= poor; });
+  if (change_faces && any_poor) {
+    std::vector<char> at_flipped(mesh.num_vertices(), 0);
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      if (jac[f] <= poor)
+        for (int i = 0; i < mesh.face_size(f); ++i) at_flipped[mesh.face(f)[i]] = 1;
+    r.removed_doublets = remove_doublets_at(mesh, kind, at_flipped);
+    if (r.removed_doublets) again();
+  }
+  if (change_faces && (r.flipped_after || poor > 0)) {
+    r.split_faces = split_flipped_faces(mesh, targets, poor);
+    if (r.split_faces) again();
+  }
+  if (change_faces) r.dropped_scraps = remove_small_pieces(mesh, 4);  // left by the merges and collapses
+  const std::vector<int> old = compact_vertices(mesh);
+  std::vector<char> compact_kind(old.size());
+  for (size_t i = 0; i < old.size(); ++i) compact_kind[i] = kind[old[i]];
+  kind = std::move(compact_kind);
   return r;
 }
 
@@ -282,7 +319,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   // 7. Pure quads.
   UntangleReport before_subdivision;
   if (options.pure_quads) {
-    before_subdivision = untangle(result.mesh, result.vertex_feature_kind, targets, true);
+    before_subdivision = untangle(result.mesh, result.vertex_feature_kind, targets, true, s, 0.05);
     std::vector<int> kind;
     std::vector<std::array<int, 2>> edge_of;
     PolygonMesh fine = subdivide_to_quads(result.mesh, &kind, &edge_of);
@@ -310,12 +347,14 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   // 8. Guarded last step: vertices of flipped faces moved until none is left (quad_untangle.hpp); faces that
   //    stay flipped split along a diagonal. For pure quads this runs on the quad-dominant mesh before the
   //    subdivision too (a split face still becomes quads there), and after it without splits.
-  result.untangle = untangle(result.mesh, result.vertex_feature_kind, targets, !options.pure_quads);
+  result.untangle = untangle(result.mesh, result.vertex_feature_kind, targets, !options.pure_quads, s);
   if (options.pure_quads) {
     result.untangle.flipped_before += before_subdivision.flipped_before;
     result.untangle.moved_vertices += before_subdivision.moved_vertices;
     result.untangle.released_features += before_subdivision.released_features;
     result.untangle.split_faces = before_subdivision.split_faces;
+    result.untangle.removed_doublets += before_subdivision.removed_doublets;
+    result.untangle.collapsed_edges += before_subdivision.collapsed_edges;
   }
   if (result.untangle.flipped_after)
     result.messages.push_back(std::to_string(result.untangle.flipped_after) +

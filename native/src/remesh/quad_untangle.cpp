@@ -1,6 +1,8 @@
 #include "nfield/remesh/quad_untangle.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <limits>
 
 #include "nfield/remesh/quad_stats.hpp"
@@ -85,7 +87,7 @@ UntangleReport untangle_flipped_faces(PolygonMesh& mesh, const std::vector<char>
   // Stage 0 keeps the features: corners stay, curve vertices slide along their feature. Only if faces are
   // still flipped, stage 1 lets corners slide along the features too, and stage 2 lets every vertex move on
   // the surface (a flipped face is worse than a feature vertex a little off its feature).
-  for (int stage = 0; stage < 3; ++stage) {
+  for (int stage = 0; stage < (std::getenv("UNT") ? std::atoi(std::getenv("UNT")) : 3); ++stage) {
     // Later stages only for faces that are flipped or nearly so (the input's normals differ a little from the
     // cut surface's, so a face just above zero here could be just below against the input).
     const double threshold = stage == 0 ? margin : 0.4 * margin;
@@ -114,6 +116,19 @@ UntangleReport untangle_flipped_faces(PolygonMesh& mesh, const std::vector<char>
       for (int v = 0; v < V; ++v) {
         if (!active[v] || kind_now(v) == kCorner || neighbours[v].empty()) continue;
         const Vec3 start = mesh.positions[v];
+        const Vec3 start_normal = targets.surface.surface_normal(start, targets.surface_normals);
+        // A candidate counts only on the vertex's own sheet of the surface: a step in the tangent plane of a
+        // part thinner than the step projects onto its other side (normal turned by more than 60 degrees).
+        auto try_at = [&](const Vec3& candidate, double& best, Vec3& best_position) {
+          const Vec3 p = project(candidate, kind_now(v), targets);
+          if (targets.surface.surface_normal(p, targets.surface_normals).dot(start_normal) < 0.5) return false;
+          mesh.positions[v] = p;
+          const double q = local_quality(v);
+          if (!(q > best + 1e-9)) return false;
+          best = q;
+          best_position = p;
+          return true;
+        };
         double best = local_quality(v);
         Vec3 best_position = start;
         // Goals: the mean of the neighbours; the mean of the positions that make each quad a parallelogram.
@@ -133,14 +148,29 @@ UntangleReport untangle_flipped_faces(PolygonMesh& mesh, const std::vector<char>
         }
         if (quads) goals.push_back(parallelogram / quads);
         for (const Vec3& goal : goals)
-          for (double t : {0.25, 0.5, 0.75, 1.0}) {
-            mesh.positions[v] = project(start + t * (goal - start), kind_now(v), targets);
-            const double q = local_quality(v);
-            if (q > best + 1e-9) {
-              best = q;
-              best_position = mesh.positions[v];
+          for (double t : {0.25, 0.5, 0.75, 1.0}) try_at(start + t * (goal - start), best, best_position);
+        // Then a pattern search around the best point so far, in its tangent plane: eight directions, the
+        // step halved when none of them improves (from half the mean edge length, four times).
+        if (best < threshold) {
+          double reach = 0;
+          for (int w : neighbours[v]) reach += (mesh.positions[w] - start).norm();
+          double step = 0.5 * reach / static_cast<double>(neighbours[v].size());
+          const Vec3 normal = targets.surface.surface_normal(best_position, targets.surface_normals);
+          const Vec3 x = normal.squaredNorm() > 0 ? normal.unitOrthogonal() : Vec3::UnitX();
+          const Vec3 y = normal.cross(x);
+          for (int halving = 0; halving < 4 && best < threshold;) {
+            bool better = false;
+            const Vec3 centre = best_position;
+            for (int d = 0; d < 8; ++d) {
+              const double a = d * 0.785398163397448;
+              better = try_at(centre + step * (std::cos(a) * x + std::sin(a) * y), best, best_position) || better;
+            }
+            if (!better) {
+              step *= 0.5;
+              ++halving;
             }
           }
+        }
         mesh.positions[v] = best_position;
         if (best_position != start) {
           ++report.moved_vertices;
@@ -156,7 +186,13 @@ UntangleReport untangle_flipped_faces(PolygonMesh& mesh, const std::vector<char>
   return report;
 }
 
-int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets) {
+std::vector<double> scaled_jacobians_on(const PolygonMesh& mesh, const ProjectionTargets& targets) {
+  std::vector<double> q(mesh.num_faces());
+  for (int f = 0; f < mesh.num_faces(); ++f) q[f] = face_quality(mesh, f, targets);
+  return q;
+}
+
+int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets, double below) {
   std::vector<std::vector<int>> faces(mesh.num_faces());
   for (int f = 0; f < mesh.num_faces(); ++f) faces[f].assign(mesh.face(f), mesh.face(f) + mesh.face_size(f));
   auto quality = [&](const std::vector<int>& poly) { return face_quality_of(mesh, poly, targets); };
@@ -164,12 +200,13 @@ int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets) {
   std::vector<std::vector<int>> out;
   for (auto& poly : faces) {
     const int k = static_cast<int>(poly.size());
-    if (k < 4 || face_quality_of(mesh, poly, targets) > 0) {
+    const double q0 = face_quality_of(mesh, poly, targets);
+    if (k < 4 || q0 > below) {
       out.push_back(poly);
       continue;
     }
-    // The diagonal (i, j) whose two parts have the best worst corner.
-    double best = 0;
+    // The diagonal (i, j) whose two parts have the best worst corner (better than the face's own).
+    double best = std::max(q0, 0.0);
     int bi = -1, bj = -1;
     for (int i = 0; i < k; ++i)
       for (int j = i + 2; j < k; ++j) {

@@ -87,7 +87,10 @@ SurfaceNormals surface_normals(const std::vector<Vec3>& vertices, const std::vec
 }
 
 Vec3 TriangleTree::surface_normal(const Vec3& q, const SurfaceNormals& normals) const {
-  const Hit hit = closest(q);
+  return normal_at(closest(q), normals);
+}
+
+Vec3 TriangleTree::normal_at(const Hit& hit, const SurfaceNormals& normals) const {
   if (hit.triangle < 0) return Vec3::Zero();
   const auto& t = triangles_[hit.triangle];
   const Eigen::Vector3d w = barycentric(hit.point, vertices_[t[0]], vertices_[t[1]], vertices_[t[2]]);

@@ -19,8 +19,9 @@
 //  - Large faces (6 sides or more, left where the extraction found no lattice point inside): a vertex at
 //    the centroid, projected onto the input, is joined to every other corner, giving k/2 quads (and one
 //    triangle for odd k). Flat large polygons deviate from a curved input by a good part of an edge length.
-//  - Relaxation: each vertex moves towards the mean of the centroids of its faces (weight 1/2), then back
-//    onto the input (projection); corner vertices stay, curve vertices slide along their feature.
+//  - Relaxation: each vertex moves half way towards the mean of the centroids of its faces, in its tangent
+//    plane (the normal part of the move is dropped), then back onto the input (projection); corner vertices
+//    stay, curve vertices slide along their feature.
 #pragma once
 #include <vector>
 
@@ -36,6 +37,10 @@ struct CleanupReport {
 /// Topological clean-up (doublets, triangle pairs, triangle + pentagon). `feature_kind` is updated with
 /// the vertex renumbering. Returns what was done.
 CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& feature_kind, double min_jacobian = 0.2);
+
+/// The doublet step alone, for corners too where `vertices[v]` is set (the last resort for a flipped face
+/// at a feature corner met by only two faces). Leaves the removed vertices unused. Returns the number removed.
+int remove_doublets_at(PolygonMesh& mesh, const std::vector<char>& feature_kind, const std::vector<char>& vertices);
 
 /// The triangle-strip step alone (see above); returns the number of strips re-split.
 int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian = 0.2, int max_quads = 8);

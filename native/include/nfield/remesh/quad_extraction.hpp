@@ -16,8 +16,9 @@
 //     where the lattice points are tangled (no geometric sorting of links).
 //  4. A loop that revisits a vertex is split into simple loops; loops of fewer than 3 vertices are
 //     dropped, and so are faces over `max_face_size`.
-//  5. Faces that would make an edge non-manifold or inconsistently oriented are removed, pinched
-//     vertices are split: the result is manifold and oriented by construction.
+//  5. Faces that would make an edge non-manifold or inconsistently oriented are removed (with scraps of
+//     fewer than 4 faces this cuts off), pinched vertices are split: the result is manifold and oriented by
+//     construction.
 //  6. Vertices are projected onto the input: corner clusters onto their corner, curve clusters onto the
 //     nearest feature edge, all others onto the nearest surface point.
 #pragma once
@@ -40,6 +41,7 @@ struct ExtractionReport {
   int dropped_large_faces = 0;  ///< faces over max_face_size
   int open_walks = 0;           ///< border walks that did not close (cannot happen on a valid surface)
   int removed_conflicting = 0;  ///< faces removed to keep edges manifold and oriented
+  int dropped_scraps = 0;       ///< faces of pieces of fewer than 4 faces cut off by those removals
   int split_vertices = 0;       ///< copies made of pinched vertices
 };
 

@@ -32,15 +32,23 @@ struct UntangleReport {
   int released_features = 0;  ///< moves of feature vertices off their corner / feature (stages 1 and 2)
   int rounds = 0;
   int split_faces = 0;     ///< faces split by split_flipped_faces (set by the caller)
+  int removed_doublets = 0;  ///< valence-2 vertices of flipped faces removed (set by the caller)
+  int collapsed_edges = 0;   ///< vertices merged with another at (nearly) the same point (set by the caller)
+  int dropped_scraps = 0;    ///< faces of pieces of fewer than 4 faces those changes left (set by the caller)
 };
 
 UntangleReport untangle_flipped_faces(PolygonMesh& mesh, const std::vector<char>& feature_kind,
                                       const ProjectionTargets& targets, double margin = 0.05, int max_rounds = 30);
 
-/// For faces still flipped after untangle_flipped_faces (quad-dominant output only): splits each along the
-/// diagonal whose two parts have the best worst corner, when both parts are unflipped. This is for corners
+/// For faces still flipped after untangle_flipped_faces (worst corner <= `below`; quad-dominant output, or
+/// the quad-dominant mesh before the pure-quad subdivision): splits each along the diagonal whose two parts
+/// have the best worst corner, when that is better than the face's own and both parts are unflipped. This is for corners
 /// that cannot move (a feature corner met by two faces, one of them wrapping round a corner of the
 /// surface): the face becomes a triangle and a quad, or two triangles. Returns the number of faces split.
-int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets);
+int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets, double below = 0);
+
+/// Minimum corner scaled Jacobian per face against the projection surface (as quad_stats.hpp's, with the
+/// remesher's own cut surface as the reference).
+std::vector<double> scaled_jacobians_on(const PolygonMesh& mesh, const ProjectionTargets& targets);
 
 }  // namespace nfield::remesh

@@ -54,6 +54,8 @@ class TriangleTree {
   /// and on a flat part it is the plane's normal. `normals` from surface_normals() of the same triangles.
   /// Zero if the tree is empty.
   Vec3 surface_normal(const Vec3& q, const SurfaceNormals& normals) const;
+  /// The same normal at a point closest() returned.
+  Vec3 normal_at(const Hit& hit, const SurfaceNormals& normals) const;
   bool empty() const { return triangles_.empty(); }
   const std::vector<Vec3>& vertices() const { return vertices_; }
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
