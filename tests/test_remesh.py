@@ -236,6 +236,7 @@ def fandisk():
     ({"edge_length": float("nan")}, "edge_length must be a positive"),
     ({"target_faces": 100, "sharp_angle": 200.0}, "sharp_angle must be below 180"),
     ({"target_faces": 100, "seed": -1}, "seed must be an integer"),
+    ({"target_faces": 100, "feature_field_angle": 50}, "feature_field_angle must be a number of degrees in 0..45"),
     ({"target_faces": 100, "iterations": 0}, "iterations must be an integer in 1..1000"),
     ({"target_faces": 100, "n": 3}, "n = 3 given, but the field has n = 4"),
     ({"edge_length": 1e6}, "every component of the mesh is too small"),
