@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <limits>
 
 #include "nfield/remesh/quad_stats.hpp"
@@ -87,7 +86,7 @@ UntangleReport untangle_flipped_faces(PolygonMesh& mesh, const std::vector<char>
   // Stage 0 keeps the features: corners stay, curve vertices slide along their feature. Only if faces are
   // still flipped, stage 1 lets corners slide along the features too, and stage 2 lets every vertex move on
   // the surface (a flipped face is worse than a feature vertex a little off its feature).
-  for (int stage = 0; stage < (std::getenv("UNT") ? std::atoi(std::getenv("UNT")) : 3); ++stage) {
+  for (int stage = 0; stage < 3; ++stage) {
     // Later stages only for faces that are flipped or nearly so (the input's normals differ a little from the
     // cut surface's, so a face just above zero here could be just below against the input).
     const double threshold = stage == 0 ? margin : 0.4 * margin;
