@@ -121,8 +121,10 @@ void bind_remesh(py::module_& m) {
     d["num_vertices_without_field"] = r.num_vertices_without_field;
     d["lattice_spacing"] = r.lattice_spacing;
     d["extraction"] = extraction_dict(r.extraction);
-    d["cleanup"] = named("doublets", r.cleanup_doublets, "triangle_pairs", r.cleanup_triangle_pairs, "triangle_strips",
-                         r.cleanup_triangle_strips, "split_large_faces", r.cleanup_split_faces);
+    const CleanupReport& k = r.cleanup;
+    d["cleanup"] = named("doublets", k.doublets, "triangle_pairs", k.triangle_pairs + k.triangle_pentagon_pairs,
+                         "triangle_strips", k.triangle_strips, "split_cones", k.split_cones, "merged_cones",
+                         k.merged_cones, "split_large_faces", r.cleanup_split_faces);
     const CancellationReport& c = r.cancellation;
     d["position_singularities"] = named(
         "orientation_singularities", c.orientation_singularities, "before", c.position_singularities_before, "after",

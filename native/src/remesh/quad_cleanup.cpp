@@ -134,6 +134,139 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std:
 
 }  // namespace
 
+int split_cone_vertices(PolygonMesh& mesh, std::vector<char>& kind) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  auto dir = directed_faces(faces);
+  const VertexValence vv = vertex_valences(mesh);
+  auto face_of = [&](int a, int b) {  // the face containing a -> b
+    auto it = dir.find((static_cast<long long>(a) << 32) | static_cast<unsigned int>(b));
+    return it == dir.end() ? -1 : it->second;
+  };
+  auto slot = [](const std::vector<int>& f, int v) { return static_cast<int>(std::find(f.begin(), f.end(), v) - f.begin()); };
+  std::vector<char> touched(faces.size(), 0);
+  int split = 0;
+  const int V0 = mesh.num_vertices();
+  for (int v = 0; v < V0; ++v) {
+    if (vv.valence[v] != 6 || vv.boundary[v] || kind[v] != kNoFeature) continue;
+    // The fan of faces around v in order: f_k = (.., prev_k, v, next_k, ..) and f_{k+1} holds next_k -> v.
+    int start = -1;
+    for (size_t f = 0; f < faces.size() && start < 0; ++f)
+      if (!touched[f] && slot(faces[f], v) < static_cast<int>(faces[f].size())) start = static_cast<int>(f);
+    if (start < 0) continue;
+    std::vector<int> fan, next;
+    int f = start;
+    bool closed = false;
+    for (int step = 0; step < 6; ++step) {
+      const auto& x = faces[f];
+      const int n = x[(slot(x, v) + 1) % x.size()];
+      fan.push_back(f);
+      next.push_back(n);
+      f = face_of(n, v);
+      if (f < 0) break;
+      if (f == start) {
+        closed = step == 5;
+        break;
+      }
+    }
+    if (!closed) continue;
+    bool free = true;
+    for (int g : fan) free = free && !touched[g];
+    if (!free) continue;
+    // A triangle in the fan, preferring one whose opposite face is a triangle too.
+    int t = -1;
+    for (int k = 0; k < 6; ++k)
+      if (faces[fan[k]].size() == 3 && faces[fan[(k + 3) % 6]].size() <= 4 &&
+          (t < 0 || faces[fan[(k + 3) % 6]].size() == 3))
+        t = k;
+    if (t < 0) continue;
+    // v1 takes the edges to next_t, next_{t+1}, next_{t+2}; v2 the other three.
+    const int v1 = mesh.num_vertices(), v2 = v1 + 1;
+    Vec3 m1 = Vec3::Zero(), m2 = Vec3::Zero();
+    for (int k = 0; k < 3; ++k) {
+      m1 += mesh.positions[next[(t + k) % 6]];
+      m2 += mesh.positions[next[(t + 3 + k) % 6]];
+    }
+    const Vec3 p = mesh.positions[v];
+    mesh.positions.push_back(p + 0.3 * (m1 / 3.0 - p));
+    mesh.positions.push_back(p + 0.3 * (m2 / 3.0 - p));
+    kind.push_back(kNoFeature);
+    kind.push_back(kNoFeature);
+    for (int k = 1; k <= 2; ++k) std::replace(faces[fan[(t + k) % 6]].begin(), faces[fan[(t + k) % 6]].end(), v, v1);
+    for (int k = 4; k <= 5; ++k) std::replace(faces[fan[(t + k) % 6]].begin(), faces[fan[(t + k) % 6]].end(), v, v2);
+    auto& tri = faces[fan[t]];  // (.., prev_t, v, next_t, ..): v becomes v2, v1
+    tri.insert(tri.begin() + slot(tri, v) + 1, v1);
+    *std::find(tri.begin(), tri.end(), v) = v2;
+    auto& opp = faces[fan[(t + 3) % 6]];  // (.., next_{t+2}, v, prev_{t+4}, ..): v becomes v1, v2
+    opp.insert(opp.begin() + slot(opp, v) + 1, v2);
+    *std::find(opp.begin(), opp.end(), v) = v1;
+    for (int g : fan) touched[g] = 1;
+    ++split;
+  }
+  if (split) rebuild(mesh, faces);
+  return split;
+}
+
+int merge_cone_vertices(PolygonMesh& mesh, const std::vector<char>& kind) {
+  std::vector<std::vector<int>> faces = faces_of(mesh);
+  auto dir = directed_faces(faces);
+  const VertexValence vv = vertex_valences(mesh);
+  std::vector<std::vector<int>> neighbours(mesh.num_vertices());
+  for (const auto& f : faces)
+    for (size_t i = 0; i < f.size(); ++i) {
+      neighbours[f[i]].push_back(f[(i + 1) % f.size()]);
+      neighbours[f[i]].push_back(f[(i + f.size() - 1) % f.size()]);
+    }
+  for (auto& n : neighbours) {
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+  }
+  auto face_of = [&](int a, int b) {
+    auto it = dir.find((static_cast<long long>(a) << 32) | static_cast<unsigned int>(b));
+    return it == dir.end() ? -1 : it->second;
+  };
+  std::vector<char> touched(faces.size(), 0), gone(mesh.num_vertices(), 0);
+  int merged = 0;
+  for (int u = 0; u < mesh.num_vertices(); ++u) {
+    if (vv.valence[u] != 3 || vv.boundary[u] || kind[u] != kNoFeature || gone[u]) continue;
+    for (int w : neighbours[u]) {
+      if (w < u || vv.valence[w] != 3 || vv.boundary[w] || kind[w] != kNoFeature || gone[w]) continue;
+      const int f = face_of(u, w), g = face_of(w, u);
+      if (f < 0 || g < 0 || touched[f] || touched[g]) continue;
+      const size_t a = faces[f].size(), b = faces[g].size();
+      // a pentagon and a quad (-> a quad and a triangle) or two pentagons (-> two quads)
+      if (!((a == 5 && b == 4) || (a == 4 && b == 5) || (a == 5 && b == 5))) continue;
+      // link condition: u and w have no other common neighbour
+      std::vector<int> common;
+      std::set_intersection(neighbours[u].begin(), neighbours[u].end(), neighbours[w].begin(), neighbours[w].end(),
+                            std::back_inserter(common));
+      if (!common.empty()) continue;
+      bool free = true;
+      for (size_t k = 0; k < faces.size() && free; ++k)
+        if (touched[k] && (std::count(faces[k].begin(), faces[k].end(), u) || std::count(faces[k].begin(), faces[k].end(), w)))
+          free = false;
+      if (!free) continue;
+      // w goes into u, at the middle of the edge
+      mesh.positions[u] = 0.5 * (mesh.positions[u] + mesh.positions[w]);
+      for (auto& face : faces) {
+        if (!std::count(face.begin(), face.end(), w)) continue;
+        std::replace(face.begin(), face.end(), w, u);
+        std::vector<int> dedup;
+        for (size_t i = 0; i < face.size(); ++i)
+          if (face[i] != face[(i + 1) % face.size()]) dedup.push_back(face[i]);
+        face = dedup;
+        touched[&face - faces.data()] = 1;
+      }
+      for (auto& face : faces)
+        if (std::count(face.begin(), face.end(), u)) touched[&face - faces.data()] = 1;
+      gone[w] = 1;
+      ++merged;
+      break;
+    }
+  }
+  if (merged) rebuild(mesh, faces);
+  return merged;
+}
+
 int remove_doublets_at(PolygonMesh& mesh, const std::vector<char>& kind, const std::vector<char>& vertices) {
   return remove_doublets(mesh, kind, &vertices);
 }
@@ -319,6 +452,8 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
   rebuild(mesh, faces);
   report.triangle_strips = pair_triangles_through_strips(mesh, min_jacobian);
   report.doublets += remove_doublets(mesh, kind, nullptr);  // merging triangle pairs can leave valence-2 vertices
+  report.split_cones = split_cone_vertices(mesh, kind);
+  report.merged_cones = merge_cone_vertices(mesh, kind);
   const std::vector<int> old = compact_vertices(mesh);
   std::vector<char> k2(old.size());
   for (size_t i = 0; i < old.size(); ++i) k2[i] = kind[old[i]];

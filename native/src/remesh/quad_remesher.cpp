@@ -309,9 +309,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     }
   }
   const CleanupReport cleanup = clean_up_quads(result.mesh, result.vertex_feature_kind);
-  result.cleanup_doublets = cleanup.doublets;
-  result.cleanup_triangle_pairs = cleanup.triangle_pairs + cleanup.triangle_pentagon_pairs;
-  result.cleanup_triangle_strips = cleanup.triangle_strips;
+  result.cleanup = cleanup;
   result.cleanup_split_faces = split_large_faces(result.mesh, result.vertex_feature_kind, targets);
   relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   report(0.95);

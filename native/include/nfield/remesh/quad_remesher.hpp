@@ -20,6 +20,7 @@
 #include "nfield/remesh/polygon_mesh.hpp"
 #include "nfield/remesh/position_field.hpp"
 #include "nfield/remesh/position_singularities.hpp"
+#include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 
@@ -49,7 +50,8 @@ struct QuadRemeshResult {
   int num_vertices_without_field = 0;
   double lattice_spacing = 0;
   ExtractionReport extraction;
-  int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
+  CleanupReport cleanup;                  ///< quad_cleanup.hpp
+  int cleanup_split_faces = 0;            ///< faces of 6 or more sides split (split_large_faces)
   CancellationReport cancellation;        ///< position singularities before / after the flow
   UntangleReport untangle;                ///< flipped faces before / after the last step
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
