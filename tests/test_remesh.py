@@ -53,22 +53,35 @@ def vertex_distance_to_input(V, mesh) -> float:
 
 # ---------------------------------------------------------------------------------------------- every mesh
 # The two largest meshes (69k and 86k faces) run the same code as the others on more data: `slow` (left out
-# of `test --quick` and of the sanitizer job).
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("stanford-bunny.obj", "armadillo.obj")
-                                  else n for n in MESH_NAMES])
-def test_output_is_manifold_and_oriented_on_every_test_mesh(name):
+# of `test --quick` and of the sanitizer job). They are remeshed at 3,000 faces: at 1,500 their thinnest parts
+# (the bunny's ears, the armadillo's fingers and claws) are narrower than one quad.
+LARGE = ("stanford-bunny.obj", "armadillo.obj")
+
+
+@pytest.mark.parametrize("pure", [False, True], ids=["quad-dominant", "pure-quads"])
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in LARGE else n for n in MESH_NAMES])
+def test_output_is_manifold_oriented_and_unflipped_on_every_test_mesh(name, pure):
+    """Every test mesh, both modes, features kept (boundaries, sharp edges over 40 degrees): no edge in more than
+    two faces, every vertex one fan, every edge walked both ways, and no flipped face: no corner with a scaled
+    Jacobian <= 0 against the input's normal there (a face turned against the surface, folded over, or a dart;
+    the definition of a non-positive Jacobian at a corner that invalidates a finite element; quad_mesh_stats,
+    tested on hand-made flipped faces in test_remesh_stats.py)."""
     mesh = core_mesh(name)
     field = solve(mesh, n=4, order=2, align="curvature-max")
-    V, F, st = quad_remesh(mesh, field, target_faces=1500)
+    target = 3000 if name in LARGE else 1500
+    V, F, st = quad_remesh(mesh, field, target_faces=target, pure_quads=pure)
     print(name, {k: st[k] for k in ("num_faces", "quad_fraction", "irregular_vertices", "field_singularities",
-                                    "alignment_mean_deg", "hausdorff_relative", "min_scaled_jacobian")})
+                                    "alignment_mean_deg", "hausdorff_relative", "min_scaled_jacobian")}, st["untangle"])
     assert st["manifold"] and st["oriented"], st["manifold_report"]
     assert st["manifold_report"]["nonmanifold_vertices"] == 0 and st["manifold_report"]["inconsistent_edges"] == 0
     assert all(len(f) >= 3 and len(set(f)) == len(f) for f in F)
     assert np.isfinite(V).all()
+    assert st["inverted_faces"] == 0 and st["min_scaled_jacobian"] > 0, st["untangle"]
+    if pure:
+        assert st["quad_fraction"] == 1.0
     # The face count follows the target: the lattice has one cell per edge_length^2 of area, so the count is
     # close to the target; 25% covers the area the lattice loses at boundaries, features and small parts.
-    assert 0.75 * 1500 < st["num_faces"] < 1.25 * 1500
+    assert 0.75 * target < st["num_faces"] < 1.25 * target
     # Every output vertex lies on the input (projected onto it): up to rounding.
     assert vertex_distance_to_input(V, mesh) < 1e-9 * mesh.native.bounding_box_diagonal
     if mesh.report["num_boundary_edges"] == 0 and mesh.report["num_components"] == 1 and st["closed"]:
@@ -159,6 +172,22 @@ def test_irregular_vertices_sit_at_the_fields_singularities():
     assert st["irregular_per_singularity"] == len(irr) / 8
 
 
+@pytest.mark.parametrize("name", ["fertility.off", "rocker-arm.obj"])
+def test_irregular_vertices_at_most_one_and_a_half_per_singularity(name):
+    """The issue's target on closed meshes: irregular vertices <= 1.5 x the field's singularities. Each cone
+    should give one irregular vertex (or one non-quad face), and the flow pairs the lattice's row ends; the
+    clean-up mends cones extracted as a valence-6 vertex beside a triangle, or as two valence-3 vertices on a
+    pentagon (measured at 2,000 faces: fertility 46 for 48 singularities, 0.96; rocker arm 31 for 31, 1.0;
+    at 5,000 faces with the benchmark's field the two mends take fertility from 1.54 to 1.25)."""
+    mesh = core_mesh(name)
+    field = solve(mesh, n=4, order=2, align="curvature-max")
+    V, F, st = quad_remesh(mesh, field, target_faces=2000)
+    print(name, st["irregular_vertices"], st["field_singularities"], st["cleanup"])
+    assert st["irregular_per_singularity"] <= 1.5
+    assert st["cleanup"]["split_cones"] + st["cleanup"]["merged_cones"] > 0
+    assert st["manifold"] and st["oriented"] and st["inverted_faces"] == 0
+
+
 # ---------------------------------------------------------------------------------------------- dirty input
 def test_two_components_a_hole_and_a_tiny_part():
     V1, F1 = meshgen.icosphere(3)
@@ -223,6 +252,7 @@ def fandisk():
     ({"edge_length": float("nan")}, "edge_length must be a positive"),
     ({"target_faces": 100, "sharp_angle": 200.0}, "sharp_angle must be below 180"),
     ({"target_faces": 100, "seed": -1}, "seed must be an integer"),
+    ({"target_faces": 100, "feature_field_angle": 50}, "feature_field_angle must be a number of degrees in 0..45"),
     ({"target_faces": 100, "iterations": 0}, "iterations must be an integer in 1..1000"),
     ({"target_faces": 100, "n": 3}, "n = 3 given, but the field has n = 4"),
     ({"edge_length": 1e6}, "every component of the mesh is too small"),

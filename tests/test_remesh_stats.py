@@ -78,6 +78,41 @@ def test_flipped_face_breaks_orientation_and_has_negative_jacobian():
     assert np.allclose(np.delete(jac, 4), 1.0, atol=1e-12)
 
 
+def test_flipped_means_a_corner_against_the_surface_normal_there():
+    """A face is flipped when one of its corners has a scaled Jacobian <= 0 against the input's normal just
+    inside that corner (quad_stats.hpp). A dart (a vertex pushed past the diagonal) has a reflex corner; a
+    face on the upper side of a thin slab is measured against the upper sheet although the lower one is near;
+    a quad on one side of a 90 degree crease, corners on the crease, is measured against its own side."""
+    # a dart: (0,0) (2,0) (1,0.5) (1,2) has a reflex corner at (1, 0.5), scaled Jacobian -sin(angle)
+    V = np.array([[0, 0, 0], [2, 0, 0], [1, 2, 0], [1, 0.5, 0]], float)
+    ref_V = np.array([[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]], float)
+    ref_T = np.array([[0, 1, 2], [0, 2, 3]])
+    off, idx = polygons_to_arrays([[0, 1, 3, 2]])
+    jac = np.asarray(native().polygon_quality(V, off, idx, ref_V, ref_T)["scaled_jacobians"])
+    e1, e2 = V[2] - V[3], V[1] - V[3]  # at (1, 0.5): to the next vertex (1, 2) and the previous one (2, 0)
+    assert jac[0] == pytest.approx(np.cross(e1, e2)[2] / (np.linalg.norm(e1) * np.linalg.norm(e2)), abs=1e-12)
+    assert jac[0] < 0
+    # a thin slab: two sheets 0.01 apart, facing up (z = 0.01) and down (z = 0); a unit quad lying on the upper
+    # sheet, much larger than the gap, is unflipped (1) and the same quad reversed is flipped (-1)
+    top, _ = quad_grid(4, 4, h=0.5, z=0.01)
+    bottom, _ = quad_grid(4, 4, h=0.5, z=0.0)
+    slab_V = np.concatenate([top, bottom])
+    T_top = triangulate(*quad_grid(4, 4, h=0.5, z=0.01))
+    slab_T = np.concatenate([T_top, T_top[:, ::-1] + len(top)])
+    Q = np.array([[0.5, 0.5, 0.01], [1.5, 0.5, 0.01], [1.5, 1.5, 0.01], [0.5, 1.5, 0.01]])
+    off, idx = polygons_to_arrays([[0, 1, 2, 3], [3, 2, 1, 0]])
+    jac = np.asarray(native().polygon_quality(Q, off, idx, slab_V, slab_T)["scaled_jacobians"])
+    assert jac[0] == pytest.approx(1.0, abs=1e-12) and jac[1] == pytest.approx(-1.0, abs=1e-12)
+    # a 90 degree crease along the x axis (the plane y >= 0, z = 0 facing +z, the plane z <= 0, y = 0 facing
+    # -y): a square on the horizontal side with two corners on the crease scores 1 at every corner
+    crease_V = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0], [0, 0, -2], [2, 0, -2]], float)
+    crease_T = np.array([[0, 1, 2], [0, 2, 3], [0, 4, 5], [0, 5, 1]])
+    S = np.array([[0.5, 0, 0], [1.5, 0, 0], [1.5, 1, 0], [0.5, 1, 0]])
+    off, idx = polygons_to_arrays([[0, 1, 2, 3]])
+    jac = np.asarray(native().polygon_quality(S, off, idx, crease_V, crease_T)["scaled_jacobians"])
+    assert jac[0] == pytest.approx(1.0, abs=1e-12)
+
+
 def test_nonmanifold_edge_and_pinched_vertex_are_reported():
     # Three quads on one edge (0, 1).
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [1, -1, 0], [0, -1, 0], [1, 0, 1], [0, 0, 1]], float)

@@ -9,23 +9,13 @@ namespace nfield::python {
 namespace {
 
 py::dict report_to_dict(const MeshReport& r) {
-  py::dict d;
-  d["num_input_vertices"] = r.num_input_vertices;
-  d["num_input_faces"] = r.num_input_faces;
-  d["unused_vertices"] = r.unused_vertices;
-  d["degenerate_faces"] = r.degenerate_faces;
-  d["sliver_faces"] = r.sliver_faces;
-  d["duplicate_faces"] = r.duplicate_faces;
-  d["nonmanifold_edges"] = r.nonmanifold_edges;
-  d["nonmanifold_vertices"] = r.nonmanifold_vertices;
-  d["flipped_faces"] = r.flipped_faces;
-  d["num_orientation_cuts"] = r.num_orientation_cuts;
-  d["num_boundary_edges"] = r.num_boundary_edges;
-  d["num_boundary_loops"] = r.num_boundary_loops;
-  d["num_components"] = r.num_components;
-  d["euler_characteristic"] = r.euler_characteristic;
-  d["summary"] = r.summary();
-  return d;
+  return named("num_input_vertices", r.num_input_vertices, "num_input_faces", r.num_input_faces,
+               "unused_vertices", r.unused_vertices, "degenerate_faces", r.degenerate_faces, "sliver_faces",
+               r.sliver_faces, "duplicate_faces", r.duplicate_faces, "nonmanifold_edges", r.nonmanifold_edges,
+               "nonmanifold_vertices", r.nonmanifold_vertices, "flipped_faces", r.flipped_faces,
+               "num_orientation_cuts", r.num_orientation_cuts, "num_boundary_edges", r.num_boundary_edges,
+               "num_boundary_loops", r.num_boundary_loops, "num_components", r.num_components,
+               "euler_characteristic", r.euler_characteristic, "summary", r.summary());
 }
 
 void require_vertex(const TriangleMesh& m, int v) {

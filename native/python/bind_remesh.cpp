@@ -3,8 +3,12 @@
 // cancels (binding_support.hpp).
 #include <array>
 #include <climits>
+#include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
+#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include "binding_support.hpp"
@@ -65,39 +69,41 @@ std::vector<std::array<int, 3>> to_reference_triangles(const IndexArray& a, int 
 }
 
 py::dict extraction_dict(const ExtractionReport& r) {
-  py::dict d;
-  d["clusters"] = r.clusters;
-  d["links"] = r.links;
-  d["merged_short_links"] = r.merged_short_links;
-  d["removed_dangling"] = r.removed_dangling;
-  d["split_faces"] = r.split_faces;
-  d["boundary_holes"] = r.boundary_holes;
-  d["dropped_large_faces"] = r.dropped_large_faces;
-  d["open_walks"] = r.open_walks;
-  d["removed_conflicting"] = r.removed_conflicting;
-  d["split_vertices"] = r.split_vertices;
-  return d;
+  return named("clusters", r.clusters, "links", r.links, "merged_short_links", r.merged_short_links,
+               "removed_dangling", r.removed_dangling, "split_faces", r.split_faces, "dropped_large_faces",
+               r.dropped_large_faces, "open_walks", r.open_walks, "removed_conflicting", r.removed_conflicting,
+               "dropped_scraps", r.dropped_scraps, "split_vertices", r.split_vertices);
+}
+
+/// The remesher's options from keyword arguments: each name sets the QuadRemeshOptions member of that name
+/// (options not given keep the struct's defaults); an unknown name is refused.
+QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
+  using O = QuadRemeshOptions;
+  using Member = std::variant<double O::*, bool O::*, int O::*, std::uint64_t O::*>;
+  static const std::map<std::string, Member> members = {
+      {"edge_length", &O::edge_length}, {"pure_quads", &O::pure_quads}, {"keep_boundary", &O::keep_boundary},
+      {"sharp_angle", &O::sharp_angle_degrees}, {"feature_field_angle", &O::feature_field_angle_degrees},
+      {"seed", &O::seed}, {"iterations", &O::iterations}, {"max_face_size", &O::max_face_size},
+      {"relax_iterations", &O::relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
+      {"cancel_position_singularities", &O::cancel_position_singularities}};
+  O o;
+  for (const auto& [key, value] : kwargs) {
+    const std::string name = py::cast<std::string>(key);
+    auto it = members.find(name);
+    if (it == members.end()) throw ParameterError("quad_remesh: unknown option '" + name + "'");
+    std::visit([&](auto member) { o.*member = py::cast<std::remove_reference_t<decltype(o.*member)>>(value); },
+               it->second);
+  }
+  return o;
 }
 
 }  // namespace
 
 void bind_remesh(py::module_& m) {
-  m.def("quad_remesh", [](std::shared_ptr<TriangleMesh> mesh, const DoubleArray& directions, double edge_length,
-                          bool pure_quads, bool keep_boundary, double sharp_angle, unsigned long long seed,
-                          int iterations, int max_face_size, bool refuse_small_components, int relax_iterations,
-                          bool cancel_position_singularities, const py::object& progress) {
+  m.def("quad_remesh", [](std::shared_ptr<TriangleMesh> mesh, const DoubleArray& directions,
+                          const py::object& progress, const py::kwargs& kwargs) {
     const std::vector<Vec3> dirs = to_points(directions, "field directions");
-    QuadRemeshOptions o;
-    o.edge_length = edge_length;
-    o.pure_quads = pure_quads;
-    o.keep_boundary = keep_boundary;
-    o.sharp_angle_degrees = sharp_angle;
-    o.seed = seed;
-    o.iterations = iterations;
-    o.max_face_size = max_face_size;
-    o.refuse_small_components = refuse_small_components;
-    o.relax_iterations = relax_iterations;
-    o.cancel_position_singularities = cancel_position_singularities;
+    const QuadRemeshOptions o = remesh_options(kwargs);
     const PythonProgress cb = wrap_progress(progress);
     const QuadRemeshResult r =
         run_with_progress(cb, [&] { return without_gil([&] { return quad_remesh(*mesh, dirs, o, cb.callback); }); });
@@ -105,8 +111,7 @@ void bind_remesh(py::module_& m) {
     d["vertices"] = from_vec3(r.mesh.positions);
     d["face_offsets"] = from_std(r.mesh.offsets);
     d["face_indices"] = from_std(r.mesh.indices);
-    std::vector<int> kind(r.vertex_feature_kind.begin(), r.vertex_feature_kind.end());
-    d["vertex_feature_kind"] = from_std(kind);
+    d["vertex_feature_kind"] = from_std(std::vector<int>(r.vertex_feature_kind.begin(), r.vertex_feature_kind.end()));
     d["messages"] = r.messages;
     d["num_components"] = r.num_components;
     d["remeshed_components"] = r.remeshed_components;
@@ -116,33 +121,31 @@ void bind_remesh(py::module_& m) {
     d["num_vertices_without_field"] = r.num_vertices_without_field;
     d["lattice_spacing"] = r.lattice_spacing;
     d["extraction"] = extraction_dict(r.extraction);
-    d["cleanup"] = py::dict(py::arg("doublets") = r.cleanup_doublets, py::arg("triangle_pairs") = r.cleanup_triangle_pairs,
-                            py::arg("triangle_strips") = r.cleanup_triangle_strips,
-                            py::arg("split_large_faces") = r.cleanup_split_faces);
+    const CleanupReport& k = r.cleanup;
+    d["cleanup"] = named("doublets", k.doublets, "triangle_pairs", k.triangle_pairs + k.triangle_pentagon_pairs,
+                         "triangle_strips", k.triangle_strips, "split_cones", k.split_cones, "merged_cones",
+                         k.merged_cones, "split_large_faces", r.cleanup_split_faces);
     const CancellationReport& c = r.cancellation;
-    d["position_singularities"] = py::dict(
-        py::arg("orientation_singularities") = c.orientation_singularities,
-        py::arg("before") = c.position_singularities_before, py::arg("after") = c.position_singularities_after,
-        py::arg("folded_before") = c.folded_before, py::arg("routed") = c.routed, py::arg("unrouted") = c.unrouted,
-        py::arg("changed_offsets") = c.changed_offsets, py::arg("fixed_offsets") = c.fixed_offsets,
-        py::arg("cost") = c.cost, py::arg("moved_representatives") = r.moved_representatives,
-        py::arg("phases") = c.phases, py::arg("augmentations") = c.augmentations,
-        py::arg("seconds_network") = c.seconds_network, py::arg("seconds_solve") = c.seconds_solve);
-    py::dict t;
-    t["setup"] = r.seconds_setup;
-    t["hierarchy"] = r.seconds_hierarchy;
-    t["positions"] = r.seconds_positions;
-    t["flow"] = r.seconds_flow;
-    t["resolve"] = r.seconds_resolve;
-    t["extraction"] = r.seconds_extraction;
-    d["seconds"] = t;
+    d["position_singularities"] = named(
+        "orientation_singularities", c.orientation_singularities, "before", c.position_singularities_before, "after",
+        c.position_singularities_after, "folded_before", c.folded_before, "routed", c.routed, "unrouted", c.unrouted,
+        "changed_offsets", c.changed_offsets, "fixed_offsets", c.fixed_offsets, "cost", c.cost,
+        "moved_representatives", r.moved_representatives, "phases", c.phases, "augmentations", c.augmentations,
+        "network_triangles", c.network_triangles, "seconds_collapse", c.seconds_collapse, "seconds_network",
+        c.seconds_network, "seconds_solve", c.seconds_solve);
+    const UntangleReport& u = r.untangle;
+    d["untangle"] = named("flipped_before", u.flipped_before, "flipped_after", u.flipped_after, "moved_vertices",
+                          u.moved_vertices, "released_features", u.released_features, "rounds", u.rounds,
+                          "split_faces", u.split_faces, "removed_doublets", u.removed_doublets,
+                          "collapsed_edges", u.collapsed_edges, "dropped_scraps", u.dropped_scraps);
+    d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
+                         "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;
-  }, py::arg("mesh"), py::arg("directions"), py::arg("edge_length"), py::arg("pure_quads") = false,
-     py::arg("keep_boundary") = true, py::arg("sharp_angle") = 40.0, py::arg("seed") = 0ULL, py::arg("iterations") = 10,
-     py::arg("max_face_size") = 12, py::arg("refuse_small_components") = false,
-     py::arg("relax_iterations") = 2, py::arg("cancel_position_singularities") = true,
-     py::arg("progress") = py::none(),
-     "Quad remesh along a cross field given as one 3D direction per face (see nfield/remesh/quad_remesher.hpp)");
+  }, py::arg("mesh"), py::arg("directions"), py::arg("progress") = py::none(),
+     "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
+     "members of QuadRemeshOptions (edge_length, pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
+     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities; "
+     "see nfield/remesh/quad_remesher.hpp)");
 
   m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,
                             const DoubleArray& costs, const IndexArray& supplies) {
@@ -171,21 +174,11 @@ void bind_remesh(py::module_& m) {
 
   m.def("polygon_manifold_report", [](const DoubleArray& V, const IndexArray& offsets, const IndexArray& indices) {
     const PolygonMesh pm = to_polygon_mesh(V, offsets, indices);
-    ManifoldReport r;
-    {
-      py::gil_scoped_release release;
-      r = check_manifold(pm);
-    }
-    py::dict d;
-    d["nonmanifold_edges"] = r.nonmanifold_edges;
-    d["inconsistent_edges"] = r.inconsistent_edges;
-    d["nonmanifold_vertices"] = r.nonmanifold_vertices;
-    d["faces_with_repeated_vertex"] = r.faces_with_repeated_vertex;
-    d["boundary_edges"] = r.boundary_edges;
-    d["isolated_vertices"] = r.isolated_vertices;
-    d["manifold"] = r.manifold();
-    d["oriented"] = r.oriented();
-    return d;
+    const ManifoldReport r = without_gil([&] { return check_manifold(pm); });
+    return named("nonmanifold_edges", r.nonmanifold_edges, "inconsistent_edges", r.inconsistent_edges,
+                 "nonmanifold_vertices", r.nonmanifold_vertices, "faces_with_repeated_vertex",
+                 r.faces_with_repeated_vertex, "boundary_edges", r.boundary_edges, "isolated_vertices",
+                 r.isolated_vertices, "manifold", r.manifold(), "oriented", r.oriented());
   }, py::arg("vertices"), py::arg("face_offsets"), py::arg("face_indices"));
 
   m.def("polygon_irregular_vertices", [](const DoubleArray& V, const IndexArray& offsets, const IndexArray& indices) {

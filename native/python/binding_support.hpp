@@ -85,6 +85,22 @@ py::array_t<typename RowMajorMatrix::Scalar> from_rows(const RowMajorMatrix& a) 
   return out;
 }
 
+/// A dict of named values: named("a", x, "b", y, ...) with x, y anything pybind11 converts. The native
+/// reports (plain structs of counts) become dicts this way, one expression each.
+inline void add_named(py::dict&) {}
+template <class T, class... Rest>
+void add_named(py::dict& d, const char* key, T&& value, Rest&&... rest) {
+  d[key] = py::cast(std::forward<T>(value));
+  add_named(d, std::forward<Rest>(rest)...);
+}
+template <class... Items>
+py::dict named(Items&&... items) {
+  static_assert(sizeof...(Items) % 2 == 0, "named() takes name, value pairs");
+  py::dict d;
+  add_named(d, std::forward<Items>(items)...);
+  return d;
+}
+
 // ---- the GIL
 
 /// Runs `work` with the GIL released and returns its result (which must not be a Python object).

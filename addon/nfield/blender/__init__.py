@@ -54,6 +54,7 @@ from .api import (  # noqa: F401  (public scripting API)
     commit_region,
     configure,
     field,
+    field_state,
     guide_report,
     mirror_design,
     precompute_spectral,

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..core import native
 from ..core import quad_remesh as core_quad_remesh
-from . import attributes, design, mesh_read, remesh_object, session_cache
+from . import attributes, design, mesh_read, remesh_object, results, session_cache
 from .choices import (
     CORE_ALIGNMENT,
     INDEX_TOLERANCE,
@@ -79,7 +79,7 @@ __all__ = [
     "commit_region", "cancel_region", "release_layer", "precompute_spectral", "sync", "stale_items",
     "set_feature_alignment", "set_guide_attributes", "add_curve_guide", "remove_curve_guide", "set_mirror_symmetry",
     "set_cuts", "guide_report", "guide_summary", "mirror_design", "comb", "clear_comb",
-    "quad_remesh",
+    "quad_remesh", "field_state",
 ]
 
 
@@ -428,15 +428,50 @@ REMESH_INFO_KEYS = ("num_faces", "num_quads", "quad_fraction", "irregular_vertic
                     "inverted_faces", "manifold", "oriented", "edge_length", "seconds")
 
 
+def field_state(obj) -> str:
+    """Whether the object's last solved field is the one of its current settings and design: "current",
+    "outdated" (a constraint, singularity, layer or setting changed since, or undo put back an older
+    design), "unknown" (guides read mesh data the design key does not cover: edges, attributes, curves)
+    or "none" (no field solved for the current mesh)."""
+    _, entry = synced_entry(obj)
+    if entry.result is None:
+        return "none"
+    if entry.extra.get("stale_reason"):
+        return "outdated"
+    try:
+        key = results.design_key(obj, entry)
+    except results.Unkeyable:
+        return "unknown"
+    for k, r in entry.extra.get("history", ()):
+        if r is entry.result:
+            return "current" if k == key else "outdated"
+    return "unknown"
+
+
 def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | None = None,
                   pure_quads: bool = False, keep_boundary: bool = True, sharp_angle: float | None = 40.0,
-                  seed: int = 0, cancel_position_singularities: bool = True) -> dict:
+                  seed: int = 0, cancel_position_singularities: bool = True, solve_first: bool = True) -> dict:
     """Everything a quad remesh of `obj` needs, read in the main thread: the core mesh of its base mesh and
     its current field (the last solve; NFieldError if it has none: solve first). Options as in
     nfield.core.quad_remesh (`edge_length` in object units wins over `target_faces`; `sharp_angle` in degrees,
-    None keeps only the boundary). Run it with remesh_from_recipe (any thread), then adopt_remesh."""
+    None keeps only the boundary). When the design changed since the last solve (field_state "outdated"),
+    `solve_first` solves it again here (NFieldError if that needs a spectral basis first: the Solve button
+    computes it in the background); off, the last solved field is remeshed. Either way recipe["notes"] says
+    so. Run it with remesh_from_recipe (any thread), then adopt_remesh."""
     check_mesh_object(obj)
     ensure_idle(obj)
+    notes = []
+    if field_state(obj) == "outdated":
+        if solve_first:
+            if pending_work(obj) == "basis":
+                raise NFieldError(f"the design of '{obj.name}' changed since its last solve, and solving it again "
+                                  f"needs the spectral basis first: press Solve (it runs in the background), then "
+                                  f"remesh")
+            solve(obj)
+            notes.append("the design changed since the last solve: solved it again before remeshing")
+        else:
+            notes.append("the design changed since the last solve: remeshed the last solved field "
+                         "(solve to follow the current design)")
     _, entry = synced_entry(obj)
     result = entry.result
     if result is None:
@@ -452,7 +487,7 @@ def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | 
                "pure_quads": bool(pure_quads), "keep_boundary": bool(keep_boundary),
                "sharp_angle": None if sharp_angle is None else float(sharp_angle), "seed": int(seed),
                "cancel_position_singularities": bool(cancel_position_singularities)}
-    return {"object": obj.name, "mesh": entry.mesh, "field": result, "options": options}
+    return {"object": obj.name, "mesh": entry.mesh, "field": result, "options": options, "notes": notes}
 
 
 def remesh_from_recipe(recipe: dict, progress=None):
@@ -460,9 +495,11 @@ def remesh_from_recipe(recipe: dict, progress=None):
     progress(fraction) returning False cancels (nfield.core.Cancelled). NFieldError for what the remesher
     refuses (a field that is not a cross, line or vector field, a target it cannot meet)."""
     try:
-        return core_quad_remesh(recipe["mesh"], recipe["field"], progress=progress, **recipe["options"])
+        qm = core_quad_remesh(recipe["mesh"], recipe["field"], progress=progress, **recipe["options"])
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
+    qm.stats["messages"] = list(recipe.get("notes", ())) + qm.stats["messages"]
+    return qm
 
 
 def adopt_remesh(obj, recipe: dict, quad_mesh):
@@ -480,11 +517,14 @@ def adopt_remesh(obj, recipe: dict, quad_mesh):
 
 def quad_remesh(obj, *, target_faces: int | None = 5000, edge_length: float | None = None,
                 pure_quads: bool = False, keep_boundary: bool = True, sharp_angle: float | None = 40.0,
-                seed: int = 0, cancel_position_singularities: bool = True, progress=None):
+                seed: int = 0, cancel_position_singularities: bool = True, solve_first: bool = True,
+                progress=None):
     """A new quad mesh object beside `obj` whose edges follow its designed field (blocking; `obj` is left
-    as it is). Returns (new object, stats) (stats: nfield.core.quad_remesh's quality figures)."""
+    as it is; a design changed since the last solve is solved again first unless `solve_first` is False,
+    see remesh_recipe). Returns (new object, stats) (stats: nfield.core.quad_remesh's quality figures;
+    stats["messages"] starts with what was done about an outdated field)."""
     recipe = remesh_recipe(obj, target_faces=target_faces, edge_length=edge_length, pure_quads=pure_quads,
                            keep_boundary=keep_boundary, sharp_angle=sharp_angle, seed=seed,
-                           cancel_position_singularities=cancel_position_singularities)
+                           cancel_position_singularities=cancel_position_singularities, solve_first=solve_first)
     qm = remesh_from_recipe(recipe, progress)
     return adopt_remesh(obj, recipe, qm), qm.stats

@@ -17,7 +17,6 @@ executed from a script it blocks.
 """
 from __future__ import annotations
 
-import os
 import threading
 import time
 
@@ -25,21 +24,11 @@ import bpy
 from bpy.props import IntProperty, StringProperty
 
 from . import api, jobs
+from .jobs import lower_worker_priority
 from .operator_base import NFieldObjectOperator
 
 #: the last background solve (scripts and tests): state "running" | "finished" | "cancelled" | "failed"
 status: dict = {"state": "idle", "object": "", "work": "", "message": "", "thread": "", "seconds": 0.0}
-
-
-def lower_worker_priority() -> None:
-    """Called first in a worker thread: the solver's threads (it and the threads it starts, which inherit
-    a thread's nice value on Linux) yield the CPU to Blender's UI thread, so the viewport keeps drawing
-    while a factorization or a basis is computed on a machine with few cores."""
-    try:
-        tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + 10))
-    except (AttributeError, OSError):  # not Linux / not permitted: the worker just runs at normal priority
-        pass
 
 
 class NFIELD_OT_solve_background(bpy.types.Operator):
@@ -156,8 +145,7 @@ class NFIELD_OT_precompute_spectral(NFieldObjectOperator, bpy.types.Operator):
 
     k: IntProperty(name="Eigenfields", default=0, min=0, description="0: the object's Eigenfields setting")
 
-    _thread = None
-    _timer = None
+    _worker = None
 
     def execute(self, context):
         # scripts / background mode: blocking
@@ -177,62 +165,27 @@ class NFIELD_OT_precompute_spectral(NFieldObjectOperator, bpy.types.Operator):
             return {"CANCELLED"}
         self._obj_name = obj.name
         self._arrays = arrays
-        self._fraction = 0.0
-        self._cancel = False
-        self._outcome = None
         precompute_status.update(state="running", object=obj.name, k=int(obj.nfield.spectral_k), fraction=0.0,
                                  message="", ui_updates=0)
-        self._thread = threading.Thread(target=self._work, daemon=True)
-        self._thread.start()
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
+        recipe = self._recipe
+        self._worker = jobs.Worker(lambda progress: api.build_from_recipe(recipe, progress), precompute_status,
+                                   "nfield-basis")
+        self._worker.start(self, context)
         return {"RUNNING_MODAL"}
 
-    def _progress(self, fraction):
-        self._fraction = float(fraction)
-        precompute_status["fraction"] = self._fraction
-        return not self._cancel
-
-    def _work(self):
-        lower_worker_priority()
-        try:
-            self._outcome = ("ok",) + api.build_from_recipe(self._recipe, self._progress)
-        except BaseException as exc:  # noqa: BLE001 - reported in the main thread
-            self._outcome = ("error", exc)
-
     def modal(self, context, event):
-        wm = context.window_manager
-        if event.type == "ESC":
-            self._cancel = True
-        if event.type != "TIMER":
-            if not self._thread.is_alive():
-                return self._finish(context)
-            # other events go on to Blender: the viewport stays usable during the computation
-            return {"RUNNING_MODAL"} if event.type == "ESC" else {"PASS_THROUGH"}
-        wm.progress_update(int(100 * self._fraction))
-        if self._thread.is_alive():
-            precompute_status["ui_updates"] += 1
-        if context.workspace is not None:
-            state = "cancelling" if self._cancel else f"{100 * self._fraction:.0f}%"
-            context.workspace.status_text_set(f"nfield: computing spectral basis ({state}), Esc to cancel")
-        if self._thread.is_alive():
-            return {"RUNNING_MODAL"}
-        return self._finish(context)
+        if self._worker.step(context, event, "computing spectral basis"):
+            return self._finish(context)
+        return self._worker.passed_on(event)
 
     def _finish(self, context):
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        outcome = self._outcome or ("error", RuntimeError("worker ended without a result"))
+        self._worker.stop(context)
+        outcome = self._worker.outcome or ("error", RuntimeError("worker ended without a result"))
         obj = bpy.data.objects.get(self._obj_name)
-        if self._cancel or outcome[0] == "error":
+        if self._worker.cancel or outcome[0] == "error":
             if obj is not None:
                 api.configure(obj, mode=self._previous[0], k=self._previous[1])
-            if self._cancel:
+            if self._worker.cancel:
                 precompute_status.update(state="cancelled", message="cancelled")
                 self.report({"WARNING"}, "nfield: spectral basis computation cancelled")
             else:
@@ -242,7 +195,7 @@ class NFIELD_OT_precompute_spectral(NFieldObjectOperator, bpy.types.Operator):
         if obj is None:
             precompute_status.update(state="failed", message="the object was deleted")
             return {"CANCELLED"}
-        _, session, result = outcome
+        session, result = outcome[1]
         api.adopt_session(obj, self._entry, self._arrays, self._recipe, session, result)
         info = session.basis_info
         message = (f"nfield: spectral basis ready ({info.k} eigenfields, {info.source}, "

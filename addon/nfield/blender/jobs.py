@@ -1,4 +1,5 @@
-"""Which objects a worker thread owns right now (the background solve of ``background``).
+"""Which objects a worker thread owns right now (the background solve of ``background``), and the worker
+thread of the modal operators that compute in the background (:class:`Worker`).
 
 While a worker solves an object's session, nothing else may touch that session: :func:`busy` says so, the
 api refuses to solve the object (NFieldError), and live updates are deferred (:func:`defer`) until the
@@ -9,6 +10,8 @@ waits for the pause).
 """
 from __future__ import annotations
 
+import os
+import threading
 import time
 
 import bpy
@@ -86,3 +89,80 @@ def _launch(obj_name: str):
     with bpy.context.temp_override(window=win, area=area, screen=win.screen, object=obj, active_object=obj):
         bpy.ops.nfield.solve_background("INVOKE_DEFAULT", object_name=obj_name)
     return None
+
+
+def lower_worker_priority() -> None:
+    """Called first in a worker thread: the solver's threads (it and the threads it starts, which inherit
+    a thread's nice value on Linux) yield the CPU to Blender's UI thread, so the viewport keeps drawing
+    while a factorization, a basis or a remesh is computed on a machine with few cores."""
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + 10))
+    except (AttributeError, OSError):  # not Linux / not permitted: the worker just runs at normal priority
+        pass
+
+
+class Worker:
+    """A computation in a worker thread, driven by a modal operator: ``work(progress)`` runs off the UI
+    thread (``progress(fraction)`` returns False once Esc was pressed, which the native calls take as
+    cancel); the window's progress bar and a status-bar line follow it, and ``status`` (a dict scripts
+    read) gets ``fraction`` and ``ui_updates`` (timer ticks the UI handled while the worker ran).
+
+    The operator calls :meth:`start` from invoke, :meth:`step` from modal (True: the worker is done; other
+    events pass on to Blender so the viewport stays usable), then :meth:`stop` and reads :attr:`outcome`:
+    ("ok", value) or ("error", exception)."""
+
+    def __init__(self, work, status: dict, name: str):
+        self.fraction = 0.0
+        self.cancel = False
+        self.outcome = None
+        self._work = work
+        self._status = status
+        self._timer = None
+        self.thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def progress(self, fraction) -> bool:
+        self.fraction = float(fraction)
+        self._status["fraction"] = self.fraction
+        return not self.cancel
+
+    def _run(self) -> None:
+        lower_worker_priority()
+        try:
+            self.outcome = ("ok", self._work(self.progress))
+        except BaseException as exc:  # noqa: BLE001 - reported in the main thread
+            self.outcome = ("error", exc)
+
+    def start(self, operator, context) -> None:
+        self.thread.start()
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(operator)
+
+    def step(self, context, event, label: str) -> bool:
+        """Handle one modal event; True once the worker is done."""
+        if event.type == "ESC" and event.value == "PRESS":
+            self.cancel = True
+        if event.type != "TIMER":
+            return not self.thread.is_alive()
+        context.window_manager.progress_update(int(100 * self.fraction))
+        if not self.thread.is_alive():
+            return True
+        self._status["ui_updates"] = self._status.get("ui_updates", 0) + 1
+        if context.workspace is not None:
+            state = "cancelling" if self.cancel else f"{100 * self.fraction:.0f}%"
+            context.workspace.status_text_set(f"nfield: {label} ({state}), Esc to cancel")
+        return False
+
+    @staticmethod
+    def passed_on(event) -> set:
+        """What modal returns while the worker runs: the timer and Esc are ours, the rest goes to Blender."""
+        return {"RUNNING_MODAL"} if event.type in ("TIMER", "ESC") else {"PASS_THROUGH"}
+
+    def stop(self, context) -> None:
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)

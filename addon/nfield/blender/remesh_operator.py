@@ -10,12 +10,11 @@ Hausdorff distance...).
 """
 from __future__ import annotations
 
-import threading
 import time
 
 import bpy
 
-from . import api
+from . import api, jobs
 from .operator_base import NFieldObjectOperator, failure_message
 from .remesh_properties import OPTION_NAMES, api_options, option_properties
 
@@ -54,8 +53,7 @@ class NFIELD_OT_quad_remesh(NFieldObjectOperator, bpy.types.Operator):
 
     __annotations__ = option_properties()
 
-    _thread = None
-    _timer = None
+    _worker = None
 
     def _finished(self, obj, new_obj, stats, seconds) -> set:
         message = f"nfield: '{new_obj.name}' from '{obj.name}' in {seconds:.1f} s: {summary(stats)}"
@@ -96,58 +94,26 @@ class NFIELD_OT_quad_remesh(NFieldObjectOperator, bpy.types.Operator):
             self.report({"ERROR"}, failure_message(exc))
             return {"CANCELLED"}
         self._obj_name = obj.name
-        self._fraction = 0.0
-        self._cancel = False
-        self._outcome = None
-        self._t0 = time.perf_counter()
         remesh_status.update(state="running", object=obj.name, result="", fraction=0.0, message="", stats={},
                              ui_updates=0, seconds=0.0)
-        self._thread = threading.Thread(target=self._work, name="nfield-remesh", daemon=True)
-        self._thread.start()
-        wm = context.window_manager
-        wm.progress_begin(0, 100)
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
+        recipe = self._recipe
+        self._t0 = time.perf_counter()
+        self._worker = jobs.Worker(lambda progress: api.remesh_from_recipe(recipe, progress), remesh_status,
+                                   "nfield-remesh")
+        self._worker.start(self, context)
         return {"RUNNING_MODAL"}
 
-    def _progress(self, fraction):
-        self._fraction = float(fraction)
-        remesh_status["fraction"] = self._fraction
-        return not self._cancel
-
-    def _work(self):
-        try:
-            self._outcome = ("ok", api.remesh_from_recipe(self._recipe, self._progress))
-        except BaseException as exc:  # noqa: BLE001 - reported in the main thread
-            self._outcome = ("error", exc)
-
     def modal(self, context, event):
-        if event.type == "ESC" and event.value == "PRESS":
-            self._cancel = True
-        if event.type != "TIMER":
-            if not self._thread.is_alive():
-                return self._finish(context)
-            # other events go on to Blender: the viewport stays usable while the worker computes
-            return {"RUNNING_MODAL"} if event.type == "ESC" else {"PASS_THROUGH"}
-        context.window_manager.progress_update(int(100 * self._fraction))
-        if self._thread.is_alive():
-            remesh_status["ui_updates"] += 1
-            if context.workspace is not None:
-                state = "cancelling" if self._cancel else f"{100 * self._fraction:.0f}%"
-                context.workspace.status_text_set(f"nfield: quad remeshing '{self._obj_name}' ({state}), Esc to cancel")
-            return {"RUNNING_MODAL"}
-        return self._finish(context)
+        if self._worker.step(context, event, f"quad remeshing '{self._obj_name}'"):
+            return self._finish(context)
+        return self._worker.passed_on(event)
 
     def _finish(self, context):
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
+        self._worker.stop(context)
         seconds = time.perf_counter() - self._t0
-        outcome = self._outcome or ("error", RuntimeError("the remesh thread ended without a result"))
+        outcome = self._worker.outcome or ("error", RuntimeError("the remesh thread ended without a result"))
         if outcome[0] == "error":
-            cancelled = self._cancel or type(outcome[1]).__name__ == "Cancelled"
+            cancelled = self._worker.cancel or type(outcome[1]).__name__ == "Cancelled"
             remesh_status.update(state="cancelled" if cancelled else "failed", message=str(outcome[1]),
                                  seconds=seconds)
             if cancelled:

@@ -43,6 +43,7 @@ class NFIELD_PT_remesh(NFieldMeshSubpanel, bpy.types.Panel):
         sub.active = st.keep_sharp
         sub.prop(st, "sharp_angle")
         col.prop(st, "pair_row_ends")
+        col.prop(st, "solve_first")
         col.prop(st, "seed")
         op = layout.operator("nfield.quad_remesh", icon="MOD_REMESH")
         for name in OPTION_NAMES:

@@ -12,34 +12,34 @@ from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty
 from bpy.types import PropertyGroup
 
 
+def _switch(name: str, description: str, default: bool = True):
+    """An on/off option."""
+    return BoolProperty(name=name, default=default, description=description)
+
+
 def option_properties() -> dict:
     """The remesh options as Blender property definitions (one dict per class that uses them)."""
     return {
         "target_faces": IntProperty(
             name="Target Faces", default=5000, min=10, soft_max=200000,
             description="About this many output faces (quads); ignored when Edge Length is set"),
-        "use_edge_length": BoolProperty(
-            name="Use Edge Length", default=False,
-            description="Give the target edge length instead of a face count"),
+        "use_edge_length": _switch("Use Edge Length", "Give the target edge length instead of a face count", False),
         "edge_length": FloatProperty(
             name="Edge Length", default=0.05, min=1e-6, soft_max=10.0, subtype="DISTANCE", unit="LENGTH",
             description="Target edge length of the quads, in object units"),
-        "pure_quads": BoolProperty(
-            name="Pure Quads", default=False,
-            description="Only quads (one subdivision step of a coarser quad-dominant mesh); off: quad-dominant "
-                        "(a few triangles and pentagons where rows end)"),
-        "keep_boundary": BoolProperty(
-            name="Keep Boundary", default=True, description="Output edges follow the open boundary"),
-        "keep_sharp": BoolProperty(
-            name="Keep Sharp Edges", default=True,
-            description="Output edges follow edges whose dihedral angle exceeds Sharp Angle"),
+        "pure_quads": _switch("Pure Quads", "Only quads (one subdivision step of a coarser quad-dominant mesh); off: "
+                              "quad-dominant (a few triangles and pentagons where rows end)", False),
+        "keep_boundary": _switch("Keep Boundary", "Output edges follow the open boundary"),
+        "keep_sharp": _switch("Keep Sharp Edges", "Output edges follow edges whose dihedral angle exceeds Sharp Angle "
+                              "(where the field runs along them)"),
         "sharp_angle": FloatProperty(
             name="Sharp Angle", default=math.radians(40.0), min=0.0, max=math.pi, subtype="ANGLE",
             description="Edges whose faces turn by more than this are kept as feature curves"),
-        "pair_row_ends": BoolProperty(
-            name="Pair Row Ends", default=True,
-            description="Cancel the lattice's row ends with a minimum-cost flow: about 2-3 times fewer irregular "
-                        "vertices and 99% quads, but several times slower (off: the fast single pass)"),
+        "pair_row_ends": _switch("Pair Row Ends", "Cancel the lattice's row ends with a minimum-cost flow: about 2-3 "
+                                 "times fewer irregular vertices and 99% quads (off: the single pass of the position "
+                                 "field)"),
+        "solve_first": _switch("Solve First", "When the design changed since the last solve, solve it again before "
+                               "remeshing (off: remesh the last solved field, with a warning)"),
         "seed": IntProperty(
             name="Seed", default=0, min=0,
             description="Seed of the lattice origins: the same seed gives the same mesh"),
@@ -56,6 +56,7 @@ def api_options(src) -> dict:
         "sharp_angle": math.degrees(src.sharp_angle) if src.keep_sharp else None,
         "seed": int(src.seed),
         "cancel_position_singularities": bool(src.pair_row_ends),
+        "solve_first": bool(src.solve_first),
     }
 
 

@@ -260,7 +260,7 @@ def _positive(value: Any, name: str) -> float:
 
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, keep_boundary: bool = True,
-                sharp_angle: float | None = 40.0, seed: int = 0, iterations: int = 10,
+                sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0, seed: int = 0, iterations: int = 10,
                 relax_iterations: int = 2, strict: bool = False, cancel_position_singularities: bool = True,
                 progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
@@ -273,6 +273,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         (the lattice is made twice as coarse, then every face is split into quads once).
     keep_boundary, sharp_angle : feature curves the output keeps: boundaries, and edges whose dihedral angle
         exceeds ``sharp_angle`` degrees (None or 0: none).
+    feature_field_angle : a sharp edge is kept only where the field runs within this many degrees (0..45) of
+        it on both its faces (a crease the field crosses diagonally is not forced into a lattice line).
     seed : the random lattice origins; the same seed gives the same mesh.
     iterations : Gauss-Seidel sweeps of the position field per hierarchy level.
     relax_iterations : smoothing steps (towards face centroids, then back onto the surface) after extraction.
@@ -305,6 +307,12 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     sharp_angle = float(sharp_angle)
     if not (math.isfinite(sharp_angle) and sharp_angle < 180):
         raise ValueError(f"sharp_angle must be below 180 degrees (0 or None: no sharp edges), got {sharp_angle!r}")
+    try:
+        feature_field_angle = float(feature_field_angle)
+    except (TypeError, ValueError):
+        raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}") from None
+    if not 0.0 <= feature_field_angle <= 45.0:
+        raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**64:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
@@ -312,8 +320,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
-    r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), h, pure_quads=bool(pure_quads),
-                             keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle, seed=int(seed),
+    r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quads=bool(pure_quads),
+                             keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle,
+                             feature_field_angle=feature_field_angle, seed=int(seed),
                              iterations=int(iterations), relax_iterations=int(relax_iterations),
                              refuse_small_components=bool(strict),
                              cancel_position_singularities=bool(cancel_position_singularities), progress=progress)
@@ -337,6 +346,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "hierarchy_levels": int(r["num_levels"]),
         "extraction": dict(r["extraction"]),
         "cleanup": dict(r["cleanup"]),
+        "untangle": dict(r["untangle"]),
         "position_singularities": dict(r["position_singularities"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,

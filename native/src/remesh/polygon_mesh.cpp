@@ -198,6 +198,69 @@ int split_pinched_vertices(PolygonMesh& mesh, std::vector<int>* copied_from) {
   return added;
 }
 
+int collapse_short_edges(PolygonMesh& mesh, double min_length, std::vector<int>* merged_into) {
+  const int V = mesh.num_vertices();
+  std::vector<int> parent(V);
+  std::iota(parent.begin(), parent.end(), 0);
+  int merged = 0;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    for (int i = 0; i < k; ++i) {
+      const int a = find(parent, v[i]), b = find(parent, v[(i + 1) % k]);
+      if (a != b && (mesh.positions[a] - mesh.positions[b]).norm() < min_length) {
+        parent[std::max(a, b)] = std::min(a, b);
+        ++merged;
+      }
+    }
+  }
+  if (merged_into) {
+    merged_into->resize(V);
+    for (int v = 0; v < V; ++v) (*merged_into)[v] = find(parent, v);
+  }
+  if (merged == 0) return 0;
+  PolygonMesh out;
+  out.positions = mesh.positions;
+  std::vector<int> face;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    face.clear();
+    for (int i = 0; i < mesh.face_size(f); ++i) {
+      const int r = find(parent, mesh.face(f)[i]);
+      if (face.empty() || face.back() != r) face.push_back(r);
+    }
+    while (face.size() > 1 && face.front() == face.back()) face.pop_back();
+    if (face.size() >= 3) out.add_face(face);
+  }
+  mesh = std::move(out);
+  remove_conflicting_faces(mesh);
+  std::vector<int> copied_from;
+  split_pinched_vertices(mesh, &copied_from);
+  if (merged_into)
+    for (size_t v = V; v < copied_from.size(); ++v) merged_into->push_back((*merged_into)[copied_from[v]]);
+  return merged;
+}
+
+int remove_small_pieces(PolygonMesh& mesh, int min_faces) {
+  std::vector<int> piece(mesh.num_vertices());
+  std::iota(piece.begin(), piece.end(), 0);
+  for (int f = 0; f < mesh.num_faces(); ++f)
+    for (int i = 1; i < mesh.face_size(f); ++i) piece[find(piece, mesh.face(f)[i])] = find(piece, mesh.face(f)[0]);
+  std::vector<int> faces_in(mesh.num_vertices(), 0);
+  for (int f = 0; f < mesh.num_faces(); ++f) ++faces_in[find(piece, mesh.face(f)[0])];
+  PolygonMesh kept;
+  kept.positions = mesh.positions;
+  int removed = 0;
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    if (faces_in[find(piece, mesh.face(f)[0])] < min_faces) {
+      ++removed;
+      continue;
+    }
+    kept.add_face(std::vector<int>(mesh.face(f), mesh.face(f) + mesh.face_size(f)));
+  }
+  if (removed) mesh = std::move(kept);
+  return removed;
+}
+
 std::vector<int> compact_vertices(PolygonMesh& mesh) {
   std::vector<int> new_index(mesh.num_vertices(), -1), old_index;
   for (int& i : mesh.indices) {
@@ -254,6 +317,12 @@ std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh) {
     for (int i = 1; i + 1 < k; ++i) tris.push_back({v[0], v[i], v[i + 1]});
   }
   return tris;
+}
+
+Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int i = 0; i < mesh.face_size(f); ++i) c += mesh.positions[mesh.face(f)[i]];
+  return c / mesh.face_size(f);
 }
 
 Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <queue>
 
+#include "nfield/remesh/lattice_collapse.hpp"
 #include "nfield/remesh/min_cost_flow.hpp"
 
 namespace nfield::remesh {
@@ -18,23 +19,35 @@ inline void unit_of(int E, int& component, int& sign) {
   sign = E < 2 ? 1 : -1;
 }
 
-}  // namespace
+/// Which offset components the flow may not change, per surface edge: on a feature edge the component
+/// across the curve (in a's lattice coordinates the edge runs mostly along one axis; the other is across),
+/// so that the curve stays a lattice line. Bit c set: component c is fixed.
+std::vector<unsigned char> feature_fixed_components(const RemeshSurface& s, const HierarchyLevel& L,
+                                                    const std::vector<char>& feature_edge) {
+  std::vector<unsigned char> fixed(s.edges.size(), 0);
+  if (feature_edge.empty()) return fixed;
+  for (size_t e = 0; e < s.edges.size(); ++e) {
+    if (!feature_edge[e]) continue;
+    const int a = s.edges[e][0], b = s.edges[e][1];
+    const Vec3 d = s.positions[b] - s.positions[a];
+    const int across = std::abs(d.dot(L.q[a])) >= std::abs(d.dot(L.n[a].cross(L.q[a]))) ? 1 : 0;
+    fixed[e] = static_cast<unsigned char>(1 << across);
+  }
+  return fixed;
+}
 
-CancellationReport cancel_position_singularities(const RemeshSurface& s, const HierarchyLevel& L,
-                                                 const std::vector<std::array<int, 3>>& fe,
-                                                 const std::vector<char>& feature_edge, double scale,
-                                                 LatticeOffsets& o, const CancellationOptions& options,
-                                                 const std::function<bool()>& cancelled) {
-  CancellationReport report;
+/// The flow of the header comment on any triangulated surface (the fine one or the collapsed lattice mesh),
+/// `positions` in mesh units, `fixed` per edge. Changes `o` along the paths found; fills the flow figures of
+/// `report`.
+void route_residuals(const RemeshSurface& s, const std::vector<std::array<int, 3>>& fe,
+                     const std::vector<unsigned char>& fixed, double scale, LatticeOffsets& o,
+                     const CancellationOptions& options, const std::function<bool()>& cancelled,
+                     CancellationReport& report) {
   const auto t0 = std::chrono::steady_clock::now();
   const int T = static_cast<int>(s.triangles.size());
   const int E = static_cast<int>(s.edges.size());
   const FaceDefects before = face_defects(s, fe, o);
-  report.orientation_singularities = before.orientation_singularities;
-  report.position_singularities_before = before.position_singularities;
-  report.folded_before = before.folded;
-  report.position_singularities_after = before.position_singularities;
-  if (before.position_singularities == 0) return report;
+  if (before.position_singularities == 0) return;
 
   // Exponent of the quarter turn with which D_e enters the residual of triangle t (in its first corner's
   // coordinates), for each of its three edges.
@@ -123,15 +136,8 @@ CancellationReport cancel_position_singularities(const RemeshSurface& s, const H
   std::vector<Variable> variables;
   constexpr double kMinCost = 0.01;
   for (int e = 0; e < E; ++e) {
-    const int a = s.edges[e][0], b = s.edges[e][1];
-    int across = -1;  // on a feature edge, the component across the curve stays
-    if (!feature_edge.empty() && feature_edge[e]) {
-      // In a's lattice coordinates the edge runs mostly along one axis; the other one is across.
-      const Vec3 d = s.positions[b] - s.positions[a];
-      across = std::abs(d.dot(L.q[a])) >= std::abs(d.dot(L.n[a].cross(L.q[a]))) ? 1 : 0;
-    }
     for (int c = 0; c < 2; ++c) {
-      if (c == across) {
+      if (fixed[e] >> c & 1) {
         ++report.fixed_offsets;
         continue;
       }
@@ -184,6 +190,41 @@ CancellationReport cancel_position_singularities(const RemeshSurface& s, const H
       ++report.changed_offsets;
     }
   }
+}
+
+}  // namespace
+
+CancellationReport cancel_position_singularities(const RemeshSurface& s, const HierarchyLevel& L,
+                                                 const std::vector<std::array<int, 3>>& fe,
+                                                 const std::vector<char>& feature_edge, double scale,
+                                                 LatticeOffsets& o, const CancellationOptions& options,
+                                                 const std::function<bool()>& cancelled) {
+  CancellationReport report;
+  const FaceDefects before = face_defects(s, fe, o);
+  report.orientation_singularities = before.orientation_singularities;
+  report.position_singularities_before = before.position_singularities;
+  report.folded_before = before.folded;
+  report.position_singularities_after = before.position_singularities;
+  if (before.position_singularities == 0) return report;
+  const std::vector<unsigned char> fixed = feature_fixed_components(s, L, feature_edge);
+  if (options.collapse) {
+    // The flow on the lattice-level mesh (lattice_collapse.hpp); it must reproduce the fine offsets exactly
+    // before the flow (a self-check: otherwise the fine network is used).
+    const auto t0 = std::chrono::steady_clock::now();
+    CoarseLattice coarse = collapse_zero_offsets(s, o, fixed, L.p);
+    LatticeOffsets check = o;
+    if (expand_offsets(s, coarse, check) == 0) {
+      report.network_triangles = static_cast<int>(coarse.surface.triangles.size());
+      report.seconds_collapse = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      route_residuals(coarse.surface, triangle_edges(coarse.surface), coarse.fixed, scale, coarse.offsets, options,
+                      cancelled, report);
+      report.changed_offsets = expand_offsets(s, coarse, o);
+      report.position_singularities_after = face_defects(s, fe, o).position_singularities;
+      return report;
+    }
+  }
+  report.network_triangles = static_cast<int>(s.triangles.size());
+  route_residuals(s, fe, fixed, scale, o, options, cancelled, report);
   report.position_singularities_after = face_defects(s, fe, o).position_singularities;
   return report;
 }

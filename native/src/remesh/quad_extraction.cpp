@@ -37,6 +37,7 @@ void split_walk(const std::vector<int>& walk, std::vector<std::vector<int>>& loo
 ProjectionTargets make_projection_targets(const RemeshSurface& s, const Features& f) {
   ProjectionTargets t;
   t.surface = TriangleTree(s.positions, s.triangles);
+  t.surface_normals = surface_normals(s.positions, s.triangles);
   std::vector<std::array<int, 3>> segs;
   for (size_t e = 0; e < s.edges.size(); ++e)
     if (f.edge_is_feature[e]) segs.push_back({s.edges[e][0], s.edges[e][1], s.edges[e][1]});
@@ -74,10 +75,16 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
     pos.assign(C, Vec3::Zero());
     nrm.assign(C, Vec3::Zero());
     std::vector<double> w(C, 0.0);
+    // Only the members of the strongest feature kind place a cluster: their lattice points satisfy the
+    // feature constraints (on the corner, on the curve), the other members' copies of the same lattice
+    // point differ from them by their mismatch.
+    std::vector<char> strongest(C, kNoFeature);
+    for (int v = 0; v < V; ++v) strongest[cluster_of[v]] = std::max(strongest[cluster_of[v]], features.vertex_kind[v]);
     for (int v = 0; v < V; ++v) {
       const double a = L.area[v] > 0 ? L.area[v] : 1e-300;
-      pos[cluster_of[v]] += a * L.p[v];
       nrm[cluster_of[v]] += a * L.n[v];
+      if (features.vertex_kind[v] != strongest[cluster_of[v]]) continue;
+      pos[cluster_of[v]] += a * L.p[v];
       w[cluster_of[v]] += a;
     }
     for (int c = 0; c < C; ++c) {
@@ -104,111 +111,118 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   cluster_positions(pos, nrm, cluster_of, C);
   report.clusters = C;
 
-  std::vector<std::vector<int>> nbrs(C);
+  // 3. Faces: the output graph (clusters joined by unit-offset edges) is embedded in the surface, and its
+  //    faces are the connected regions of the surface it cuts out: triangles joined across every edge that
+  //    is neither inside a cluster nor a link nor on the boundary (the diagonals and longer jumps of the
+  //    lattice). Each region's border, walked with the surface's orientation, is the face's loop; the
+  //    rotation at every vertex is the surface's own, so no geometric sorting is needed.
+  const std::vector<std::array<int, 3>> fe = triangle_edges(s);
+  const int T = static_cast<int>(s.triangles.size());
+  auto blocks = [&](int e) {
+    const int a = s.edges[e][0], b = s.edges[e][1];
+    if (s.edge_faces[e][1] < 0 || cluster_of[a] == cluster_of[b]) return true;
+    const Eigen::Vector2i& d = offsets.offset[e];
+    return std::abs(d[0]) + std::abs(d[1]) == 1;
+  };
+  std::vector<char> blocking(E);
   {
     std::vector<long long> link_keys;
-    for (const auto& e : unit_edges) {
-      int a = cluster_of[e[0]], b = cluster_of[e[1]];
-      if (a == b) continue;
+    for (int e = 0; e < E; ++e) {
+      blocking[e] = blocks(e);
+      int a = cluster_of[s.edges[e][0]], b = cluster_of[s.edges[e][1]];
+      if (!blocking[e] || a == b) continue;
       if (a > b) std::swap(a, b);
       link_keys.push_back(key(a, b));
     }
     std::sort(link_keys.begin(), link_keys.end());
-    link_keys.erase(std::unique(link_keys.begin(), link_keys.end()), link_keys.end());
-    for (long long k : link_keys) {
-      const int a = static_cast<int>(k >> 32), b = static_cast<int>(k & 0xffffffffLL);
-      nbrs[a].push_back(b);
-      nbrs[b].push_back(a);
-    }
-    report.links = static_cast<int>(link_keys.size());
+    report.links = static_cast<int>(std::unique(link_keys.begin(), link_keys.end()) - link_keys.begin());
   }
-  // 3. Remove dangling vertices.
-  {
-    std::vector<int> queue;
-    for (int c = 0; c < C; ++c)
-      if (nbrs[c].size() == 1) queue.push_back(c);
-    while (!queue.empty()) {
-      const int c = queue.back();
-      queue.pop_back();
-      if (nbrs[c].size() != 1) continue;
-      const int o = nbrs[c][0];
-      nbrs[c].clear();
-      ++report.removed_dangling;
-      auto& on = nbrs[o];
-      on.erase(std::remove(on.begin(), on.end(), c), on.end());
-      if (on.size() == 1) queue.push_back(o);
+  // The half-edge after (u -> v) of triangle t along its region's border: turn around v through the region
+  // (across non-blocking edges) until the first blocking edge out of v.
+  auto corner_index = [&](int t, int v) {
+    const auto& x = s.triangles[t];
+    return x[0] == v ? 0 : (x[1] == v ? 1 : 2);
+  };
+  auto next_border = [&](int t, int v) {  // returns (triangle, corner of the half-edge's start)
+    for (int guard = 0; guard < 1 << 20; ++guard) {
+      const int m = corner_index(t, v);  // half-edge v -> x[m + 1] is edge fe[t][m]
+      const int e = fe[t][m];
+      if (blocking[e]) return std::make_pair(t, m);
+      t = s.edge_faces[e][0] == t ? s.edge_faces[e][1] : s.edge_faces[e][0];
     }
-  }
-  // Sort links by angle around each cluster's normal.
-  for (int c = 0; c < C; ++c) {
-    if (nbrs[c].size() < 2) continue;
-    const Vec3& n = nrm[c];
-    const Vec3 x = n.unitOrthogonal(), y = n.cross(x);
-    std::vector<std::pair<double, int>> sorted;
-    for (int o : nbrs[c]) {
-      const Vec3 d = pos[o] - pos[c];
-      sorted.emplace_back(std::atan2(d.dot(y), d.dot(x)), o);
-    }
-    std::sort(sorted.begin(), sorted.end());
-    for (size_t k = 0; k < sorted.size(); ++k) nbrs[c][k] = sorted[k].second;
-  }
-  // Boundary clusters: containing a vertex of a boundary edge of the surface.
-  std::vector<char> on_boundary(C, 0);
-  for (int e = 0; e < E; ++e)
-    if (s.edge_faces[e][1] < 0) on_boundary[cluster_of[s.edges[e][0]]] = on_boundary[cluster_of[s.edges[e][1]]] = 1;
-  // Walk faces.
-  std::unordered_map<long long, char> used;
+    return std::make_pair(-1, -1);
+  };
+  std::vector<char> walked(3 * static_cast<size_t>(T), 0);
   std::vector<std::vector<int>> faces;
-  for (int a = 0; a < C; ++a)
-    for (int b : nbrs[a]) {
-      if (used.count(key(a, b))) continue;
-      std::vector<int> walk;
-      int u = a, w = b;
+  std::vector<int> walk;
+  for (int t0 = 0; t0 < T; ++t0)
+    for (int m0 = 0; m0 < 3; ++m0) {
+      if (walked[3 * t0 + m0] || !blocking[fe[t0][m0]]) continue;
+      walk.clear();
+      int t = t0, m = m0;
       bool closed = false;
-      for (int step = 0; step < 4 * max_face_size + 8; ++step) {
-        used[key(u, w)] = 1;
-        walk.push_back(u);
-        const auto& around = nbrs[w];
-        const int k = static_cast<int>(std::find(around.begin(), around.end(), u) - around.begin());
-        const int next = around[(k + static_cast<int>(around.size()) - 1) % around.size()];
-        u = w;
-        w = next;
-        if (u == a && w == b) {
+      for (int step = 0; step < 4 * T + 8; ++step) {
+        walked[3 * t + m] = 1;
+        walk.push_back(cluster_of[s.triangles[t][m]]);
+        const auto nx = next_border(t, s.triangles[t][(m + 1) % 3]);
+        if (nx.first < 0) break;
+        t = nx.first;
+        m = nx.second;
+        if (t == t0 && m == m0) {
           closed = true;
           break;
         }
-        if (used.count(key(u, w))) break;
+        if (walked[3 * t + m]) break;
       }
       if (!closed) {
         ++report.open_walks;
         continue;
       }
-      std::vector<int> sorted = walk;
+      // Steps inside a cluster vanish; a step out and straight back (a link that ends inside the face, or
+      // a sliver of triangles along a link) is a spike and is cut off.
+      std::vector<int> loop;
+      for (int c : walk) {
+        if (!loop.empty() && loop.back() == c) continue;
+        loop.push_back(c);
+        while (loop.size() >= 3 && loop[loop.size() - 3] == loop.back()) {
+          loop.pop_back();
+          loop.pop_back();
+          ++report.removed_dangling;
+        }
+      }
+      // the same at the seam of the cyclic walk
+      for (bool changed = true; changed && loop.size() >= 2;) {
+        changed = false;
+        if (loop.front() == loop.back()) {
+          loop.pop_back();
+          changed = true;
+        } else if (loop.size() >= 3 && loop[loop.size() - 2] == loop.front()) {
+          loop.pop_back();
+          loop.pop_back();
+          ++report.removed_dangling;
+          changed = true;
+        } else if (loop.size() >= 3 && loop[1] == loop.back()) {
+          loop.erase(loop.begin());
+          loop.pop_back();
+          ++report.removed_dangling;
+          changed = true;
+        }
+      }
+      if (loop.size() < 3) continue;
+      std::vector<int> sorted = loop;
       std::sort(sorted.begin(), sorted.end());
       if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end()) {
         ++report.split_faces;
-        split_walk(walk, faces);
+        split_walk(loop, faces);
       } else {
-        faces.push_back(walk);
+        faces.push_back(loop);
       }
     }
-  // 4. Holes and large faces.
+  // 4. Large faces.
   PolygonMesh out;
   out.positions = pos;
   for (auto& face : faces) {
-    const int k = static_cast<int>(face.size());
-    bool all_boundary = true;
-    Vec3 newell = Vec3::Zero(), mean_n = Vec3::Zero();
-    for (int i = 0; i < k; ++i) {
-      all_boundary = all_boundary && on_boundary[face[i]];
-      newell += pos[face[i]].cross(pos[face[(i + 1) % k]]);
-      mean_n += nrm[face[i]];
-    }
-    if (all_boundary && (newell.dot(mean_n) < 0 || k > 4)) {
-      ++report.boundary_holes;
-      continue;
-    }
-    if (k > max_face_size) {
+    if (static_cast<int>(face.size()) > max_face_size) {
       ++report.dropped_large_faces;
       continue;
     }
@@ -218,20 +232,59 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   report.removed_conflicting = remove_conflicting_faces(out);
   std::vector<int> copied_from;
   report.split_vertices = split_pinched_vertices(out, &copied_from);
+  // Scraps: pieces of fewer than 4 faces, cut off where conflicting faces were left out or pinched off at a
+  // vertex (every component of the surface is a few lattice cells at least, so a piece this small is not
+  // one of them).
+  report.dropped_scraps = remove_small_pieces(out, 4);
   const std::vector<int> old_index = compact_vertices(out);
 
   // Feature kind per output vertex (strongest member), and projection.
+  // A cluster lies on a feature when one of its members does and its lattice point is on the feature (the
+  // constraints put the lattice points of a feature's vertices on it): a cluster that merely reaches a
+  // feature with one member, its lattice point a row away, is not pulled onto it.
   std::vector<char> cluster_kind(C, kNoFeature);
   for (int v = 0; v < V; ++v) cluster_kind[cluster_of[v]] = std::max(cluster_kind[cluster_of[v]], features.vertex_kind[v]);
-  std::vector<char> kind(out.num_vertices());
-  for (int v = 0; v < out.num_vertices(); ++v) kind[v] = cluster_kind[copied_from[old_index[v]]];
-  // Corners: snap to the member corner vertex nearest to the cluster position.
+  const double on_feature = 0.45 * scale;
+  for (int c = 0; c < C; ++c)
+    if (cluster_kind[c] != kNoFeature && !targets.feature_edges.empty() &&
+        targets.feature_edges.closest(pos[c]).squared_distance > on_feature * on_feature)
+      cluster_kind[c] = kNoFeature;
+  // Corners: snap to the member corner vertex nearest to the cluster position (when that is near).
   std::vector<int> corner_of(C, -1);
   for (int v = 0; v < V; ++v) {
     if (features.vertex_kind[v] != kCorner) continue;
     const int c = cluster_of[v];
+    if ((s.positions[v] - pos[c]).norm() > on_feature) continue;
     if (corner_of[c] < 0 || (s.positions[v] - pos[c]).norm() < (s.positions[corner_of[c]] - pos[c]).norm()) corner_of[c] = v;
   }
+  // One output vertex per corner point: when two clusters claim corners closer than a quarter of the
+  // spacing (the same corner, a copy of it made by the cut, or a tight group of feature ends), the one
+  // nearer to its corner takes it and the other is not snapped (it would make a degenerate face).
+  {
+    std::vector<int> claimed;  // clusters owning a corner so far
+    for (int c = 0; c < C; ++c) {
+      if (corner_of[c] < 0) continue;
+      const Vec3& x = s.positions[corner_of[c]];
+      bool keep = true;
+      for (int& other : claimed) {
+        const Vec3& y = s.positions[corner_of[other]];
+        if ((x - y).norm() >= 0.25 * scale) continue;
+        if ((pos[c] - x).norm() < (pos[other] - y).norm()) {
+          corner_of[other] = -1;
+          other = c;
+        } else {
+          keep = false;
+        }
+        break;
+      }
+      if (!keep) corner_of[c] = -1;
+      else if (std::find(claimed.begin(), claimed.end(), c) == claimed.end()) claimed.push_back(c);
+    }
+  }
+  for (int c = 0; c < C; ++c)
+    if (cluster_kind[c] == kCorner && corner_of[c] < 0) cluster_kind[c] = kCurve;
+  std::vector<char> kind(out.num_vertices());
+  for (int v = 0; v < out.num_vertices(); ++v) kind[v] = cluster_kind[copied_from[old_index[v]]];
   project_vertices(out, kind, targets);
   for (int v = 0; v < out.num_vertices(); ++v) {
     const int c = copied_from[old_index[v]];
@@ -242,11 +295,46 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
 }
 
 void project_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets) {
+  // The side each vertex faces: the sum of its faces' Newell vectors (the mesh is consistently oriented).
+  std::vector<Vec3> facing(mesh.num_vertices(), Vec3::Zero());
+  std::vector<double> reach(mesh.num_vertices(), 0.0);
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int k = mesh.face_size(f);
+    const int* v = mesh.face(f);
+    Vec3 n = Vec3::Zero();
+    for (int i = 0; i < k; ++i) n += mesh.positions[v[i]].cross(mesh.positions[v[(i + 1) % k]]);
+    for (int i = 0; i < k; ++i) {
+      facing[v[i]] += n;
+      reach[v[i]] = std::max(reach[v[i]], (mesh.positions[v[(i + 1) % k]] - mesh.positions[v[i]]).norm());
+    }
+  }
   for (int v = 0; v < mesh.num_vertices(); ++v) {
     const Vec3 p = mesh.positions[v];
     const bool on_feature = v < static_cast<int>(kind.size()) && kind[v] != kNoFeature && !targets.feature_edges.empty();
-    const auto hit = on_feature ? targets.feature_edges.closest(p) : targets.surface.closest(p);
-    if (hit.triangle >= 0) mesh.positions[v] = hit.point;
+    if (on_feature) {
+      const auto hit = targets.feature_edges.closest(p);
+      if (hit.triangle >= 0) mesh.positions[v] = hit.point;
+      continue;
+    }
+    auto hit = targets.surface.closest(p);
+    if (hit.triangle < 0) continue;
+    const Vec3 side = facing[v].norm() > 0 ? Vec3(facing[v].normalized()) : Vec3::Zero();
+    if (side.squaredNorm() > 0 && targets.surface.normal_at(hit, targets.surface_normals).dot(side) < 0.3) {
+      // The nearest point is on a sheet facing the other way (a part thinner than a face): the nearest point
+      // seen from a little outside or inside along the face side that does face this way is taken instead.
+      double best = HUGE_VAL;
+      for (double d : {0.25, 0.5, 1.0})
+        for (double sign : {1.0, -1.0}) {
+          const auto other = targets.surface.closest(p + sign * d * reach[v] * side);
+          if (other.triangle < 0 || targets.surface.normal_at(other, targets.surface_normals).dot(side) < 0.3) continue;
+          const double dist = (other.point - p).squaredNorm();
+          if (dist < best) {
+            best = dist;
+            hit = other;
+          }
+        }
+    }
+    mesh.positions[v] = hit.point;
   }
 }
 

@@ -11,6 +11,7 @@
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
+#include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
 namespace nfield::remesh {
@@ -57,6 +58,58 @@ long long euler_characteristic(const RemeshSurface& s) {
          static_cast<long long>(s.triangles.size());
 }
 
+/// untangle_flipped_faces; then, when `change_faces`, for faces still flipped their valence-2 vertices
+/// (feature corners too) removed and split_flipped_faces, each followed by one more untangle. Unused
+/// vertices are dropped at the end (kind follows).
+UntangleReport untangle(PolygonMesh& mesh, std::vector<char>& kind, const ProjectionTargets& targets, bool change_faces,
+                        double spacing, double poor = 0) {
+  int collapsed = 0;
+  if (change_faces) {
+    // Vertices that landed on one point (two lattice points projected onto the tip of a part thinner than a
+    // face) are one vertex: no move can open a face whose corners all sit there.
+    std::vector<int> into;
+    collapsed = collapse_short_edges(mesh, 0.02 * spacing, &into);
+    if (collapsed) {
+      std::vector<char> merged_kind(into.size(), kNoFeature);
+      for (size_t v = 0; v < into.size(); ++v) {
+        const char k = v < kind.size() ? kind[v] : kind[into[v]];
+        merged_kind[v] = k;
+        merged_kind[into[v]] = std::max(merged_kind[into[v]], k);
+      }
+      kind = std::move(merged_kind);
+    }
+  }
+  UntangleReport r = untangle_flipped_faces(mesh, kind, targets);
+  r.collapsed_edges = collapsed;
+  auto again = [&]() {
+    const UntangleReport more = untangle_flipped_faces(mesh, kind, targets);
+    r.flipped_after = more.flipped_after;
+    r.moved_vertices += more.moved_vertices;
+    r.released_features += more.released_features;
+    r.rounds += more.rounds;
+  };
+  const std::vector<double> jac = change_faces ? scaled_jacobians_on(mesh, targets) : std::vector<double>();
+  const bool any_poor = std::any_of(jac.begin(), jac.end(), [&](double q) { return q <= poor; });
+  if (change_faces && any_poor) {
+    std::vector<char> at_flipped(mesh.num_vertices(), 0);
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      if (jac[f] <= poor)
+        for (int i = 0; i < mesh.face_size(f); ++i) at_flipped[mesh.face(f)[i]] = 1;
+    r.removed_doublets = remove_doublets_at(mesh, kind, at_flipped);
+    if (r.removed_doublets) again();
+  }
+  if (change_faces && (r.flipped_after || poor > 0)) {
+    r.split_faces = split_flipped_faces(mesh, targets, poor);
+    if (r.split_faces) again();
+  }
+  if (change_faces) r.dropped_scraps = remove_small_pieces(mesh, 4);  // left by the merges and collapses
+  const std::vector<int> old = compact_vertices(mesh);
+  std::vector<char> compact_kind(old.size());
+  for (size_t i = 0; i < old.size(); ++i) compact_kind[i] = kind[old[i]];
+  kind = std::move(compact_kind);
+  return r;
+}
+
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
 
 void check_options(const QuadRemeshOptions& o) {
@@ -67,6 +120,8 @@ void check_options(const QuadRemeshOptions& o) {
   if (o.iterations < 1 || o.iterations > 1000) throw ParameterError("quad remesh: iterations must be in 1..1000");
   if (o.relax_iterations < 0 || o.relax_iterations > 100) throw ParameterError("quad remesh: relax_iterations must be in 0..100");
   if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
+  if (!(o.feature_field_angle_degrees >= 0 && o.feature_field_angle_degrees <= 45))
+    throw ParameterError("quad remesh: feature_field_angle must be in 0..45 degrees");
 }
 
 }  // namespace
@@ -144,7 +199,14 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.messages.push_back("non-manifold or non-orientable edges were cut: they become boundaries of the output");
 
   // 2. Features. Chains shorter than two lattice steps (tiny holes, noise) are not kept.
-  const Features features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
+  Features features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
+  const int num_sharp = features.num_sharp_edges;
+  const int off_field = keep_features_along_field(surface, features, directions,
+                                                  options.feature_field_angle_degrees, 2 * s);
+  if (off_field)
+    result.messages.push_back(std::to_string(num_sharp - features.num_sharp_edges) + " of " + std::to_string(num_sharp) +
+                              " sharp edges were not kept: the field crosses them at more than " +
+                              format(options.feature_field_angle_degrees) + " degrees");
   result.num_boundary_feature_edges = features.num_boundary_edges;
   result.num_sharp_feature_edges = features.num_sharp_edges;
   if (features.num_dropped_chains)
@@ -247,24 +309,28 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     }
   }
   const CleanupReport cleanup = clean_up_quads(result.mesh, result.vertex_feature_kind);
-  result.cleanup_doublets = cleanup.doublets;
-  result.cleanup_triangle_pairs = cleanup.triangle_pairs + cleanup.triangle_pentagon_pairs;
-  result.cleanup_triangle_strips = cleanup.triangle_strips;
+  result.cleanup = cleanup;
   result.cleanup_split_faces = split_large_faces(result.mesh, result.vertex_feature_kind, targets);
   relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   report(0.95);
 
   // 7. Pure quads.
+  UntangleReport before_subdivision;
   if (options.pure_quads) {
+    before_subdivision = untangle(result.mesh, result.vertex_feature_kind, targets, true, s, 0.05);
     std::vector<int> kind;
     std::vector<std::array<int, 2>> edge_of;
     PolygonMesh fine = subdivide_to_quads(result.mesh, &kind, &edge_of);
     std::vector<char> fkind(fine.num_vertices(), kNoFeature);
     for (int v = 0; v < fine.num_vertices(); ++v) {
       if (kind[v] == 0) fkind[v] = result.vertex_feature_kind[v];
-      // A midpoint lies on a feature curve when both ends do (corner or curve).
-      else if (kind[v] == 1 && result.vertex_feature_kind[edge_of[v][0]] && result.vertex_feature_kind[edge_of[v][1]])
-        fkind[v] = kCurve;
+      // A midpoint lies on a feature curve when both ends do (corner or curve) and the edge runs along a
+      // feature, not across a band between two of them: its midpoint is near a feature edge.
+      else if (kind[v] == 1 && result.vertex_feature_kind[edge_of[v][0]] && result.vertex_feature_kind[edge_of[v][1]] &&
+               !targets.feature_edges.empty()) {
+        const double length = (fine.positions[edge_of[v][0]] - fine.positions[edge_of[v][1]]).norm();
+        if (std::sqrt(targets.feature_edges.closest(fine.positions[v]).squared_distance) < 0.25 * length) fkind[v] = kCurve;
+      }
     }
     std::vector<char> project_kind = fkind;
     for (int v = 0; v < fine.num_vertices(); ++v)
@@ -276,6 +342,22 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.vertex_feature_kind = std::move(fkind);
     relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   }
+  // 8. Guarded last step: vertices of flipped faces moved until none is left (quad_untangle.hpp); faces that
+  //    stay flipped split along a diagonal. For pure quads this runs on the quad-dominant mesh before the
+  //    subdivision too (a split face still becomes quads there), and after it without splits.
+  result.untangle = untangle(result.mesh, result.vertex_feature_kind, targets, !options.pure_quads, s);
+  if (options.pure_quads) {
+    result.untangle.flipped_before += before_subdivision.flipped_before;
+    result.untangle.moved_vertices += before_subdivision.moved_vertices;
+    result.untangle.released_features += before_subdivision.released_features;
+    result.untangle.split_faces = before_subdivision.split_faces;
+    result.untangle.removed_doublets += before_subdivision.removed_doublets;
+    result.untangle.collapsed_edges += before_subdivision.collapsed_edges;
+  }
+  if (result.untangle.flipped_after)
+    result.messages.push_back(std::to_string(result.untangle.flipped_after) +
+                              " face(s) are still flipped (a corner turned against the surface): the target is too "
+                              "coarse for a part of the mesh; raise the face count");
   result.seconds_extraction = seconds_since(t0);
   if (result.extraction.removed_conflicting)
     result.messages.push_back(std::to_string(result.extraction.removed_conflicting) +

@@ -78,40 +78,39 @@ IrregularVertices irregular_vertices(const PolygonMesh& mesh) {
 ReferenceSurface make_reference(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                 const std::vector<Vec3>& directions) {
   ReferenceSurface r;
-  r.normals.resize(triangles.size());
-  for (size_t t = 0; t < triangles.size(); ++t) {
-    const auto& tri = triangles[t];
-    const Vec3 n = (vertices[tri[1]] - vertices[tri[0]]).cross(vertices[tri[2]] - vertices[tri[0]]);
-    const double len = n.norm();
-    r.normals[t] = len > 0 ? Vec3(n / len) : Vec3::Zero();
-  }
+  r.normals = surface_normals(vertices, triangles);
   r.directions = directions;
   r.directions.resize(triangles.size(), Vec3::Zero());
   r.tree = TriangleTree(vertices, triangles);
   return r;
 }
 
+double corner_scaled_jacobian(const Vec3& p, const Vec3& next, const Vec3& prev, const TriangleTree* tree,
+                              const SurfaceNormals* normals, const Vec3& own_normal, bool triangle) {
+  const Vec3 e1 = next - p, e2 = prev - p;
+  Vec3 n = own_normal;
+  if (tree && normals && !tree->empty()) {
+    const Vec3 m = tree->surface_normal(p + 0.05 * (e1 + e2), *normals);
+    if (m.squaredNorm() > 0) n = m;
+  }
+  const double l = e1.norm() * e2.norm();
+  const double j = l > 0 ? e1.cross(e2).dot(n) / l : 0.0;
+  return triangle ? j * 2.0 / std::sqrt(3.0) : j;
+}
+
 std::vector<double> scaled_jacobians(const PolygonMesh& mesh, const ReferenceSurface* reference) {
   std::vector<double> out(mesh.num_faces(), 0.0);
+  const bool use_reference = reference && !reference->tree.empty();
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const int k = mesh.face_size(f);
     const int* v = mesh.face(f);
-    Vec3 n = polygon_normal(mesh, f);
-    if (reference && !reference->tree.empty()) {
-      Vec3 c = Vec3::Zero();
-      for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
-      const auto hit = reference->tree.closest(c / k);
-      if (hit.triangle >= 0 && reference->normals[hit.triangle].squaredNorm() > 0) n = reference->normals[hit.triangle];
-    }
+    const Vec3 own = polygon_normal(mesh, f);
     double worst = std::numeric_limits<double>::infinity();
-    for (int i = 0; i < k; ++i) {
-      const Vec3& p = mesh.positions[v[i]];
-      const Vec3 e1 = mesh.positions[v[(i + 1) % k]] - p, e2 = mesh.positions[v[(i + k - 1) % k]] - p;
-      const double l = e1.norm() * e2.norm();
-      double j = l > 0 ? e1.cross(e2).dot(n) / l : 0.0;
-      if (k == 3) j *= 2.0 / std::sqrt(3.0);
-      worst = std::min(worst, j);
-    }
+    for (int i = 0; i < k; ++i)
+      worst = std::min(worst, corner_scaled_jacobian(mesh.positions[v[i]], mesh.positions[v[(i + 1) % k]],
+                                                     mesh.positions[v[(i + k - 1) % k]],
+                                                     use_reference ? &reference->tree : nullptr,
+                                                     use_reference ? &reference->normals : nullptr, own, k == 3));
     out[f] = std::isfinite(worst) ? worst : 0.0;
   }
   return out;
@@ -126,7 +125,7 @@ std::vector<double> edge_alignment_degrees(const PolygonMesh& mesh, const Refere
     const Vec3& b = mesh.positions[edges[e][1]];
     const auto hit = reference.tree.closest(0.5 * (a + b));
     if (hit.triangle < 0) continue;
-    const Vec3& n = reference.normals[hit.triangle];
+    const Vec3& n = reference.normals.face[hit.triangle];
     const Vec3& d = reference.directions[hit.triangle];
     if (d.squaredNorm() == 0 || n.squaredNorm() == 0) continue;
     const Vec3 x = (d - n * n.dot(d)).normalized();
@@ -153,9 +152,7 @@ double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree) {
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const int k = mesh.face_size(f);
     const int* v = mesh.face(f);
-    Vec3 c = Vec3::Zero();
-    for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
-    c /= k;
+    const Vec3 c = polygon_centroid(mesh, f);
     sample(c);
     for (int i = 0; i < k; ++i) {
       sample(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));

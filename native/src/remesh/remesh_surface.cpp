@@ -221,7 +221,7 @@ void finalize_surface(RemeshSurface& s) {
 Features detect_features(const RemeshSurface& s, bool keep_boundary, double sharp_angle_degrees,
                          double min_chain_length) {
   Features f;
-  const int E = static_cast<int>(s.edges.size()), V = s.num_vertices();
+  const int E = static_cast<int>(s.edges.size());
   f.edge_is_feature.assign(E, 0);
   const double cos_sharp = sharp_angle_degrees > 0 ? std::cos(sharp_angle_degrees * kPi / 180.0) : -2.0;
   for (int e = 0; e < E; ++e) {
@@ -232,6 +232,12 @@ Features detect_features(const RemeshSurface& s, bool keep_boundary, double shar
       f.edge_is_feature[e] = 1;
     }
   }
+  finish_features(s, f, min_chain_length);
+  return f;
+}
+
+void finish_features(const RemeshSurface& s, Features& f, double min_chain_length) {
+  const int E = static_cast<int>(s.edges.size()), V = s.num_vertices();
   // Drop short chains: connected components of the feature-edge graph with a small total length.
   std::vector<int> parent(V);
   std::iota(parent.begin(), parent.end(), 0);
@@ -253,9 +259,13 @@ Features detect_features(const RemeshSurface& s, bool keep_boundary, double shar
       }
     }
   }
+  f.num_boundary_edges = f.num_sharp_edges = 0;
   for (int e = 0; e < E; ++e)
     if (f.edge_is_feature[e]) (s.edge_faces[e][1] < 0 ? f.num_boundary_edges : f.num_sharp_edges)++;
 
+  // Kinds: two feature edges turning by less than 45 degrees make a curve vertex, and so does the end of a
+  // chain (one feature edge: a crease fading out needs no lattice point of its own, only its line); junctions
+  // and sharp turns are corners.
   f.vertex_kind.assign(V, kNoFeature);
   f.vertex_tangent.assign(V, Vec3::Zero());
   for (int v = 0; v < V; ++v) {
@@ -266,6 +276,17 @@ Features detect_features(const RemeshSurface& s, bool keep_boundary, double shar
         ++count;
       }
     if (count == 0) continue;
+    const Vec3& n = s.vertex_normals[v];
+    auto tangent_along = [&](Vec3 t, const Vec3& fallback) {
+      t -= n * n.dot(t);
+      return t.norm() > 0 ? Vec3(t.normalized()) : fallback;
+    };
+    if (count == 1) {
+      const Vec3 a = (s.positions[ends[0]] - s.positions[v]).normalized();
+      f.vertex_kind[v] = kCurve;
+      f.vertex_tangent[v] = tangent_along(a, a);
+      continue;
+    }
     if (count != 2) {
       f.vertex_kind[v] = kCorner;
       continue;
@@ -276,13 +297,35 @@ Features detect_features(const RemeshSurface& s, bool keep_boundary, double shar
       f.vertex_kind[v] = kCorner;
     } else {
       f.vertex_kind[v] = kCurve;
-      const Vec3 n = s.vertex_normals[v];
-      Vec3 t = a + b;
-      t -= n * n.dot(t);
-      f.vertex_tangent[v] = t.norm() > 0 ? Vec3(t.normalized()) : a;
+      f.vertex_tangent[v] = tangent_along(a + b, a);
     }
   }
-  return f;
+}
+
+int keep_features_along_field(const RemeshSurface& s, Features& f, const std::vector<Vec3>& triangle_directions,
+                              double max_angle_degrees, double min_chain_length) {
+  const double max_angle = max_angle_degrees * kPi / 180.0;
+  int dropped = 0;
+  for (size_t e = 0; e < s.edges.size(); ++e) {
+    if (!f.edge_is_feature[e] || s.edge_faces[e][1] < 0) continue;  // boundaries always stay
+    const Vec3 d = s.positions[s.edges[e][1]] - s.positions[s.edges[e][0]];
+    bool along = true;
+    for (int t : s.edge_faces[e]) {
+      const Vec3& n = s.face_normals[t];
+      const Vec3& q = triangle_directions[t];
+      if (q.squaredNorm() == 0 || n.squaredNorm() == 0) continue;  // no field there: nothing to cross
+      // angle between the edge and the nearest of the face's four cross directions, in [0, 45] degrees
+      double angle = std::fmod(std::abs(std::atan2(d.dot(n.cross(q)), d.dot(q))), kPi / 2);
+      angle = std::min(angle, kPi / 2 - angle);
+      along = along && angle <= max_angle;
+    }
+    if (!along) {
+      f.edge_is_feature[e] = 0;
+      ++dropped;
+    }
+  }
+  if (dropped) finish_features(s, f, min_chain_length);
+  return dropped;
 }
 
 Vec3 rotate_between_planes(const Vec3& d, const Vec3& from, const Vec3& to) {

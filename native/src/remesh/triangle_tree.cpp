@@ -1,6 +1,8 @@
 #include "nfield/remesh/triangle_tree.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <unordered_map>
 
 namespace nfield::remesh {
 
@@ -37,6 +39,70 @@ Vec3 closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, cons
   }
   const double v = vb / denom, w = vc / denom;
   return a + ab * v + ac * w;
+}
+
+Eigen::Vector3d barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 v0 = b - a, v1 = c - a, v2 = p - a;
+  const double d00 = v0.dot(v0), d01 = v0.dot(v1), d11 = v1.dot(v1), d20 = v2.dot(v0), d21 = v2.dot(v1);
+  const double det = d00 * d11 - d01 * d01;
+  if (!(det > 1e-30 * (d00 * d11 + 1e-300))) {
+    const double da = (p - a).squaredNorm(), db = (p - b).squaredNorm(), dc = (p - c).squaredNorm();
+    if (da <= db && da <= dc) return {1, 0, 0};
+    return db <= dc ? Eigen::Vector3d(0, 1, 0) : Eigen::Vector3d(0, 0, 1);
+  }
+  const double v = (d11 * d20 - d01 * d21) / det, w = (d00 * d21 - d01 * d20) / det;
+  return {1 - v - w, v, w};
+}
+
+SurfaceNormals surface_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles) {
+  SurfaceNormals n;
+  const size_t T = triangles.size();
+  n.face.resize(T);
+  n.vertex.assign(vertices.size(), Vec3::Zero());
+  n.edge.resize(T);
+  std::unordered_map<long long, Vec3> edge_sum;
+  auto key = [](int a, int b) {
+    if (a > b) std::swap(a, b);
+    return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
+  };
+  for (size_t t = 0; t < T; ++t) {
+    const auto& x = triangles[t];
+    const Vec3 c = (vertices[x[1]] - vertices[x[0]]).cross(vertices[x[2]] - vertices[x[0]]);
+    n.face[t] = c.norm() > 0 ? Vec3(c.normalized()) : Vec3::Zero();
+    for (int m = 0; m < 3; ++m) {
+      const Vec3 u = vertices[x[(m + 1) % 3]] - vertices[x[m]], w = vertices[x[(m + 2) % 3]] - vertices[x[m]];
+      const double angle = (u.norm() > 0 && w.norm() > 0) ? std::atan2(u.cross(w).norm(), u.dot(w)) : 0.0;
+      n.vertex[x[m]] += angle * n.face[t];
+      edge_sum.try_emplace(key(x[m], x[(m + 1) % 3]), Vec3::Zero()).first->second += n.face[t];
+    }
+  }
+  for (Vec3& v : n.vertex)
+    if (v.norm() > 0) v.normalize();
+  for (size_t t = 0; t < T; ++t)
+    for (int m = 0; m < 3; ++m) {
+      const Vec3& e = edge_sum.at(key(triangles[t][m], triangles[t][(m + 1) % 3]));
+      n.edge[t][m] = e.norm() > 0 ? Vec3(e.normalized()) : n.face[t];
+    }
+  return n;
+}
+
+Vec3 TriangleTree::surface_normal(const Vec3& q, const SurfaceNormals& normals) const {
+  return normal_at(closest(q), normals);
+}
+
+Vec3 TriangleTree::normal_at(const Hit& hit, const SurfaceNormals& normals) const {
+  if (hit.triangle < 0) return Vec3::Zero();
+  const auto& t = triangles_[hit.triangle];
+  const Eigen::Vector3d w = barycentric(hit.point, vertices_[t[0]], vertices_[t[1]], vertices_[t[2]]);
+  constexpr double kOn = 1e-9;
+  const int zeros = (w[0] <= kOn) + (w[1] <= kOn) + (w[2] <= kOn);
+  if (zeros == 0) return normals.face[hit.triangle];
+  if (zeros == 1) {  // on the edge opposite the zero weight: edge m joins corners m and m + 1
+    const int opposite = w[0] <= kOn ? 0 : (w[1] <= kOn ? 1 : 2);
+    return normals.edge[hit.triangle][(opposite + 1) % 3];
+  }
+  const int at = w[0] > kOn ? 0 : (w[1] > kOn ? 1 : 2);
+  return normals.vertex[t[at]].squaredNorm() > 0 ? normals.vertex[t[at]] : normals.face[hit.triangle];
 }
 
 TriangleTree::TriangleTree(std::vector<Vec3> vertices, std::vector<std::array<int, 3>> triangles)

@@ -9,16 +9,15 @@
 //
 // Method: successive shortest paths with node potentials pi (the primal-dual form, as for the Hungarian
 // method): reduced costs c_a + pi(tail) - pi(head) of residual arcs stay >= 0 (pi = 0 at the start, since
-// every cost is >= 0), which certifies that the flow is a cheapest one for the amounts it has moved. Each
-// phase runs one Dijkstra from all nodes with remaining supply at once, stopped when the nearest node with
-// remaining demand is settled at distance D, and raises every potential by min(distance, D) (reduced costs
-// stay >= 0 and the shortest paths to that demand get reduced cost 0), then pushes flow along as many
-// admissible paths (residual arcs of reduced cost 0) from supply to demand nodes as a depth-first search
-// finds (a blocking flow). Augmenting along arcs of reduced cost 0 keeps every reduced cost >= 0, so the
-// final flow is optimal when all supply is routed; phases stop when no demand is reachable (the routed
-// amount is then the maximum, but the cost need not be the least among maximum flows). Few phases are
-// needed when many sources have a demand nearby; a phase costs O(A_D log V_D) for the ball of radius D it
-// explores, plus O(V) to update the potentials.
+// every cost is >= 0), which certifies that the flow is a cheapest one for the amounts it has moved. The
+// sources are served one after the other: a Dijkstra search from the source on reduced costs stops when the
+// first node with remaining demand is settled (at distance D), the potentials of the settled nodes drop by
+// D - dist (the others keep theirs; this equals raising every potential by min(dist, D), up to a common
+// shift, so reduced costs stay >= 0 and the path found gets reduced cost 0), and the bottleneck is pushed
+// along the path. A search only explores the ball of radius D around its source, so when supplies have
+// demands nearby (the remesher's row ends pair locally) the whole solve costs about the sum of those balls,
+// not one pass over the network per unit. A source from which no demand is reachable keeps its supply
+// (routed is then the maximum, but the cost need not be the least among maximum flows).
 #pragma once
 #include <functional>
 #include <vector>
@@ -41,7 +40,7 @@ class MinCostFlow {
     double cost = 0;         ///< sum over arcs of cost * flow
     int augmentations = 0;
     int phases = 0;                  ///< Dijkstra runs
-    std::vector<double> path_costs;  ///< cost of each augmenting path, in order (non-decreasing)
+    std::vector<double> path_costs;  ///< cost of each augmenting path, in order
   };
   /// Solves (once). `cancelled` (optional) is polled between augmentations; when it returns true the
   /// solver stops early with a partial flow (every arc within capacity, some supply left).

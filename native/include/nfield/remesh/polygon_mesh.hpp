@@ -55,6 +55,17 @@ int remove_conflicting_faces(PolygonMesh& mesh);
 /// number of vertices added. After remove_conflicting_faces this makes the mesh manifold.
 int split_pinched_vertices(PolygonMesh& mesh, std::vector<int>* copied_from = nullptr);
 
+/// Merges the two ends of every edge shorter than min_length (mesh units) into one vertex (at the first
+/// one's position): faces lose the repeated vertex, faces left with fewer than 3 are dropped, then
+/// remove_conflicting_faces and split_pinched_vertices keep the mesh manifold and oriented. Vertices no
+/// face uses are left in place. `merged_into` (optional) receives each vertex's surviving vertex. Returns
+/// the number of vertices merged away.
+int collapse_short_edges(PolygonMesh& mesh, double min_length, std::vector<int>* merged_into = nullptr);
+
+/// Removes the faces of pieces (sets of faces joined through shared vertices) with fewer than `min_faces`
+/// faces. Returns the number of faces removed.
+int remove_small_pieces(PolygonMesh& mesh, int min_faces);
+
 /// Removes vertices used by no face (renumbering); returns the old index of each kept vertex.
 std::vector<int> compact_vertices(PolygonMesh& mesh);
 
@@ -67,6 +78,9 @@ PolygonMesh subdivide_to_quads(const PolygonMesh& mesh, std::vector<int>* kind_o
 
 /// Fan triangulation of every face from its first vertex (triangles keep the face's orientation).
 std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh);
+
+/// Mean of the vertices of face f (mesh units).
+Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f);
 
 /// Unit normal of a polygon by Newell's formula (zero for a degenerate polygon); units: none.
 Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f);

@@ -25,6 +25,11 @@
 // opposite one, a cone or the boundary along the cheapest set of paths at once (not greedily), and the
 // offsets change along those paths. The positions are then re-solved with the offsets fixed
 // (resolve_positions), which spreads the inserted or removed half-rows over the surface.
+//
+// The flow runs on the lattice-level mesh (lattice_collapse.hpp: the surface with its zero-offset edges
+// collapsed, about two triangles per output quad instead of twenty), where a path step is a lattice step;
+// its offsets are then written back onto the surface's edges. A unit of residual then moves by whole
+// lattice edges (as in QuadriFlow, whose flow runs on the graph of the extracted vertices).
 #pragma once
 #include <functional>
 #include <vector>
@@ -38,6 +43,7 @@ struct CancellationOptions {
   double give_up_cost = 20.0;  ///< cost of leaving one unit where it is (lattice steps): pairs further
                                ///< apart than twice this stay
   int max_change = 2;          ///< at most this many units per offset component and direction
+  bool collapse = true;        ///< solve on the lattice-level mesh (lattice_collapse.hpp) instead of the surface
 };
 
 struct CancellationReport {
@@ -49,7 +55,8 @@ struct CancellationReport {
   int fixed_offsets = 0;              ///< offset components the network cannot change (seams, features)
   double cost = 0;
   int phases = 0, augmentations = 0;  ///< of the flow solver (min_cost_flow.hpp)
-  double seconds_network = 0, seconds_solve = 0;  ///< building the network / solving the flow
+  int network_triangles = 0;          ///< triangles of the mesh the flow ran on (two equations each)
+  double seconds_collapse = 0, seconds_network = 0, seconds_solve = 0;  ///< collapsing / building / solving
 };
 
 /// Changes `offsets` so that as many regular triangles as possible have zero residual, at least total

@@ -7,14 +7,18 @@
 //  2. Vertices joined by D = 0 edges form clusters (union-find): the output vertices, at the area-weighted
 //     mean of their members' lattice points. Clusters joined by a D = 1 edge are linked; links shorter
 //     than a quarter of the spacing merge their clusters (two copies of one lattice point).
-//  3. Vertices with fewer than two links are removed (repeatedly). Around each vertex the links are sorted
-//     by angle in its tangent plane; walking "next link clockwise" traces every face of the embedded
-//     graph, each directed link once, so the result is an oriented polygon mesh.
-//  4. A face that revisits a vertex is split into simple loops; loops of fewer than 3 vertices are
-//     dropped. A face whose vertices all lie on the input boundary and that turns the wrong way (or is
-//     large) is the hole of a boundary loop and is dropped; faces over `max_face_size` are dropped too.
-//  5. Faces that would make an edge non-manifold or inconsistently oriented are removed, pinched
-//     vertices are split: the result is manifold and oriented by construction.
+//  3. Faces: the output graph (clusters and links) is embedded in the surface, and its faces are the
+//     connected regions it cuts out: surface triangles joined across every edge that is neither inside a
+//     cluster, nor a link, nor on the boundary (lattice diagonals and longer jumps). Walking each region's
+//     border with the surface's orientation gives the face loop; steps inside a cluster vanish and a step
+//     out and straight back (a link ending inside a face, a sliver along a link) is cut off. The rotation
+//     around every vertex is the surface's own, so the result is oriented and follows the surface even
+//     where the lattice points are tangled (no geometric sorting of links).
+//  4. A loop that revisits a vertex is split into simple loops; loops of fewer than 3 vertices are
+//     dropped, and so are faces over `max_face_size`.
+//  5. Faces that would make an edge non-manifold or inconsistently oriented are removed (with scraps of
+//     fewer than 4 faces this cuts off), pinched vertices are split: the result is manifold and oriented by
+//     construction.
 //  6. Vertices are projected onto the input: corner clusters onto their corner, curve clusters onto the
 //     nearest feature edge, all others onto the nearest surface point.
 #pragma once
@@ -32,18 +36,19 @@ struct ExtractionReport {
   int clusters = 0;
   int links = 0;
   int merged_short_links = 0;
-  int removed_dangling = 0;
+  int removed_dangling = 0;     ///< spikes cut off face loops (links ending inside a face)
   int split_faces = 0;          ///< faces that revisited a vertex
-  int boundary_holes = 0;       ///< faces dropped as holes of input boundary loops
   int dropped_large_faces = 0;  ///< faces over max_face_size
-  int open_walks = 0;           ///< face walks that did not close within 4 max_face_size steps (left open)
+  int open_walks = 0;           ///< border walks that did not close (cannot happen on a valid surface)
   int removed_conflicting = 0;  ///< faces removed to keep edges manifold and oriented
+  int dropped_scraps = 0;       ///< faces of pieces of fewer than 4 faces cut off by those removals
   int split_vertices = 0;       ///< copies made of pinched vertices
 };
 
 /// The surface's projection targets: the whole surface and its feature edges.
 struct ProjectionTargets {
   TriangleTree surface;
+  SurfaceNormals surface_normals;  ///< of `surface` (corner Jacobians, quad_stats.hpp)
   TriangleTree feature_edges;  ///< each feature edge as a degenerate triangle (a, b, b)
 };
 ProjectionTargets make_projection_targets(const RemeshSurface& surface, const Features& features);

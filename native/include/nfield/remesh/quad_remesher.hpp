@@ -20,7 +20,9 @@
 #include "nfield/remesh/polygon_mesh.hpp"
 #include "nfield/remesh/position_field.hpp"
 #include "nfield/remesh/position_singularities.hpp"
+#include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
+#include "nfield/remesh/quad_untangle.hpp"
 
 namespace nfield::remesh {
 
@@ -29,6 +31,7 @@ struct QuadRemeshOptions {
   bool pure_quads = false;           ///< one subdivision step: all faces become quads
   bool keep_boundary = true;         ///< boundary edges are feature curves
   double sharp_angle_degrees = 40;   ///< edges with a larger dihedral angle are feature curves (<= 0: none)
+  double feature_field_angle_degrees = 35;  ///< sharp edges further than this from the field are not kept
   std::uint64_t seed = 0;            ///< random lattice origins on the coarsest level
   int iterations = 10;               ///< Gauss-Seidel sweeps per hierarchy level
   int max_face_size = 12;            ///< larger extracted faces are dropped
@@ -47,8 +50,10 @@ struct QuadRemeshResult {
   int num_vertices_without_field = 0;
   double lattice_spacing = 0;
   ExtractionReport extraction;
-  int cleanup_doublets = 0, cleanup_triangle_pairs = 0, cleanup_triangle_strips = 0, cleanup_split_faces = 0;  ///< quad_cleanup.hpp
+  CleanupReport cleanup;                  ///< quad_cleanup.hpp
+  int cleanup_split_faces = 0;            ///< faces of 6 or more sides split (split_large_faces)
   CancellationReport cancellation;        ///< position singularities before / after the flow
+  UntangleReport untangle;                ///< flipped faces before / after the last step
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)

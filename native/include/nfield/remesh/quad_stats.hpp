@@ -5,11 +5,16 @@
 //  - Valence: an interior vertex is regular with 4 edges. A boundary vertex is regular with
 //    1 + round(theta / 90 deg) edges, theta the sum of its corner angles (3 on a straight boundary,
 //    2 at a 90 degree corner, 4 at a 270 degree corner).
-//  - Scaled Jacobian of a corner with edges e1 (to the next vertex) and e2 (to the previous one):
-//    (e1 x e2) . N / (|e1| |e2|), N the unit reference normal (the input surface's normal nearest to the
-//    face centroid, or the face's own Newell normal without a reference). 1 for a right angle, <= 0 for a
-//    folded or flipped corner. A face's value is the minimum over its corners. Triangles are scaled by
-//    2 / sqrt(3) so that the equilateral triangle scores 1.
+//  - Scaled Jacobian of a corner p with edges e1 (to the next vertex) and e2 (to the previous one):
+//    (e1 x e2) . N / (|e1| |e2|), N the unit reference normal of that corner: the input's normal at its
+//    point nearest to p + (e1 + e2) / 20 (just inside the corner's own wedge: a corner on a crease sees the
+//    side its face lies on, and on a part thinner than a face the point is still on the corner's own side;
+//    TriangleTree::surface_normal: the nearest triangle's normal, or on a tie between triangles the normal of
+//    their common edge or vertex); or the face's own Newell normal without a reference. 1 for a right angle,
+//    <= 0 for a folded or flipped corner. A face's value is the minimum over its corners; a face with a
+//    value <= 0 is *flipped* (inverted, as a finite element with a non-positive Jacobian at a corner is):
+//    it is turned against the surface, folded over, or a dart with a reflex corner. Triangles are scaled
+//    by 2 / sqrt(3) so that the equilateral triangle scores 1.
 //  - Edge alignment: the angle between an output edge and the nearest of the 4 directions of the cross
 //    field at the input point nearest to the edge midpoint, after projecting the edge onto that input
 //    triangle's plane; in [0, 45].
@@ -51,11 +56,17 @@ IrregularVertices irregular_vertices(const PolygonMesh& mesh);
 /// (the direction may be zero: then alignment is not measured there).
 struct ReferenceSurface {
   TriangleTree tree;
-  std::vector<Vec3> normals;
+  SurfaceNormals normals;
   std::vector<Vec3> directions;
 };
 ReferenceSurface make_reference(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles,
                                 const std::vector<Vec3>& directions);
+
+/// Scaled Jacobian of the corner at p (next, prev: its neighbours along the face) against the surface
+/// normal of `tree` at p + (e1 + e2) / 20 (TriangleTree::surface_normal), or against own_normal when tree
+/// is null; `triangle` applies the 2 / sqrt(3) scale.
+double corner_scaled_jacobian(const Vec3& p, const Vec3& next, const Vec3& prev, const TriangleTree* tree,
+                              const SurfaceNormals* normals, const Vec3& own_normal, bool triangle);
 
 /// Minimum scaled Jacobian per face (reference may be null: then the face's Newell normal is used).
 std::vector<double> scaled_jacobians(const PolygonMesh& mesh, const ReferenceSurface* reference);

@@ -8,8 +8,10 @@
 //
 // Features: boundary edges and edges whose dihedral angle (angle between the two face normals) exceeds a
 // threshold. Chains of feature edges shorter than a given length are dropped (tiny holes left by
-// degenerate faces, noise creases). A feature vertex with two feature edges turning by less than 45
-// degrees is a *curve* vertex (unit tangent along the chain), any other feature vertex is a *corner*.
+// degenerate faces, noise creases), and so are sharp edges the cross field crosses diagonally
+// (keep_features_along_field). A feature vertex with two feature edges turning by less than 45 degrees, or
+// at the end of a chain, is a *curve* vertex (unit tangent along the chain), any other feature vertex (a
+// junction or a sharp turn) is a *corner*.
 //
 // Vertex cross field: each vertex takes the corner-angle weighted n-symmetric mean (4th powers) of the
 // directions of its faces, each rotated into the vertex tangent plane by the smallest rotation taking the
@@ -74,6 +76,18 @@ struct Features {
 /// sharp_angle_degrees <= 0 disables sharp edges; keep_boundary false ignores boundaries.
 Features detect_features(const RemeshSurface& surface, bool keep_boundary, double sharp_angle_degrees,
                          double min_chain_length);
+
+/// From the marked feature edges of `features`: drops chains shorter than min_chain_length, counts the
+/// edges and sets the vertex kinds and tangents.
+void finish_features(const RemeshSurface& surface, Features& features, double min_chain_length);
+
+/// Keeps a sharp (non-boundary) feature edge only where the cross field runs along it: within
+/// max_angle_degrees of one of the four cross directions on both its faces (triangle_directions: one
+/// tangent direction per triangle, zero: no field). A crease the field crosses diagonally cannot be a lattice line without bending the field
+/// there, which costs alignment and adds a pair of singularities where the angle passes 45 degrees.
+/// Returns the number of edges no longer kept (the chains are then finished again).
+int keep_features_along_field(const RemeshSurface& surface, Features& features, const std::vector<Vec3>& triangle_directions,
+                              double max_angle_degrees, double min_chain_length);
 
 /// Unit cross-field direction (one of the four) per vertex from one tangent direction per triangle
 /// (zero: no field there). Vertices without any field get the direction of their first edge.

@@ -22,6 +22,19 @@ Vec3 closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, cons
 /// The point of segment [a, b] nearest to p.
 Vec3 closest_point_on_segment(const Vec3& p, const Vec3& a, const Vec3& b);
 
+/// Barycentric coordinates of p (assumed in the plane of the triangle) in triangle (a, b, c); for a
+/// degenerate triangle the weights of its nearest vertex.
+Eigen::Vector3d barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
+/// Normals of a triangle surface for TriangleTree::surface_normal: per triangle, per vertex (angle-weighted
+/// mean of its triangles'), and per triangle edge (edge m joins corners m and m + 1: the normalised sum of
+/// the normals of the one or two triangles on it).
+struct SurfaceNormals {
+  std::vector<Vec3> face, vertex;
+  std::vector<std::array<Vec3, 3>> edge;
+};
+SurfaceNormals surface_normals(const std::vector<Vec3>& vertices, const std::vector<std::array<int, 3>>& triangles);
+
 class TriangleTree {
  public:
   struct Hit {
@@ -35,6 +48,14 @@ class TriangleTree {
 
   /// The nearest point of all triangles to q.
   Hit closest(const Vec3& q) const;
+  /// The unit normal of the surface at its point nearest to q: inside the nearest triangle its own normal;
+  /// on one of its edges (a tie with the neighbour across) that edge's normal; at one of its vertices (a
+  /// tie with all triangles there) the vertex normal. So the answer does not depend on how a tie is broken,
+  /// and on a flat part it is the plane's normal. `normals` from surface_normals() of the same triangles.
+  /// Zero if the tree is empty.
+  Vec3 surface_normal(const Vec3& q, const SurfaceNormals& normals) const;
+  /// The same normal at a point closest() returned.
+  Vec3 normal_at(const Hit& hit, const SurfaceNormals& normals) const;
   bool empty() const { return triangles_.empty(); }
   const std::vector<Vec3>& vertices() const { return vertices_; }
   const std::vector<std::array<int, 3>>& triangles() const { return triangles_; }
