@@ -34,7 +34,7 @@ METHODS = ("ours", "ours_pure", "quadriflow", "instant_meshes")
 RENDERS = {"rocker-arm.obj": ("remesh_rocker_arm.png", (1.0, 0.35, 0.25), False),
            "stanford-bunny.obj": ("remesh_bunny.png", (0.25, -1.0, 0.3), True)}
 
-# Issue 15 targets (docs/quad_remeshing.md).
+# The quality and speed targets (docs/quad_remeshing.md).
 TARGETS = {"quad_fraction_dominant": 0.97, "alignment_mean_deg": 4.0, "alignment_p95_deg": 12.0,
            "irregular_per_singularity": 1.5, "hausdorff_relative": 0.0075, "bunny_seconds": 10.0}
 

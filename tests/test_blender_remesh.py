@@ -99,7 +99,7 @@ def test_quad_remesh_operator_creates_a_field_aligned_object(fandisk_with_field,
     assert n == 4
     st = core.quad_mesh_stats(V, F, mesh, directions)
     # Bounds: edges placed with no regard to the field have angles spread over [0, 45] deg (mean 22.5);
-    # the target for the 5k-quad benchmark is mean < 4 deg; at 1.5k faces the cleanup's shifted rungs
+    # the target of the 5k-quad benchmark is mean < 4 deg; at 1.5k faces the cleanup's shifted rungs
     # and the subdivision's diagonal-free split cost a little more, so 6 deg (quad-dominant) and 8 deg (pure
     # quads: the split edges of triangles and pentagons run off the field) bound a correct result with margin
     # while staying far below chance.

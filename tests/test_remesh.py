@@ -137,7 +137,7 @@ def test_rotating_a_single_constraint_rotates_the_edges_around_it():
         assert count > 40 and coherence > 0.95  # the edges near the constraint form one straight grid
         angles[degrees] = angle
     turned = (angles[30.0] - angles[0.0]) % 90.0
-    # 30 +- 3 degrees (the issue's tolerance): the field is exactly constant on the flat square (biharmonic
+    # 30 +- 3 degrees (the required tolerance): the field is exactly constant on the flat square (biharmonic
     # with one constraint), and the edges follow it to about a degree (alignment statistics).
     assert abs(turned - 30.0) <= 3.0, angles
 
@@ -174,7 +174,7 @@ def test_irregular_vertices_sit_at_the_fields_singularities():
 
 @pytest.mark.parametrize("name", ["fertility.off", "rocker-arm.obj"])
 def test_irregular_vertices_at_most_one_and_a_half_per_singularity(name):
-    """The issue's target on closed meshes: irregular vertices <= 1.5 x the field's singularities. Each cone
+    """The target on closed meshes: irregular vertices <= 1.5 x the field's singularities. Each cone
     should give one irregular vertex (or one non-quad face), and the flow pairs the lattice's row ends; the
     clean-up mends cones extracted as a valence-6 vertex beside a triangle, or as two valence-3 vertices on a
     pentagon (measured at 2,000 faces: fertility 46 for 48 singularities, 0.96; rocker arm 31 for 31, 1.0;
