@@ -38,6 +38,7 @@ class BaseRecord:
     value: np.ndarray        # guide target value per triangle (zeros without guides)
     weight: np.ndarray       # guide weight per triangle (ones without guides)
     raw: np.ndarray          # raw solution per triangle
+    summary: Any = None      # ResultSummary of the solve's FieldResult (live results update it on their region)
 
 
 class SessionLive:
@@ -109,8 +110,9 @@ class SessionLive:
         if self._mirror is not None:  # the symmetric solve needs a face and its mirror both free
             partner = np.asarray(self._mirror.partner)
             inside[partner[inside & (partner >= 0)]] = True
+        inside[inputs.frozen_tris] = False  # committed layers keep their values (their faces are held)
         region = np.flatnonzero(inside & np.asarray(nm.face_active, dtype=bool))
-        if len(region) > LIVE_MAX_REGION_FRACTION * T:
+        if not region.size or len(region) > LIVE_MAX_REGION_FRACTION * T:
             return None
         return region
 
@@ -131,13 +133,11 @@ class SessionLive:
             solver.set_alignment(inputs.alignment)  # the same V_UU: right-hand side only
             in_solver = self._live_in_solver
         else:
-            active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
-            free = np.zeros(self.mesh.num_triangles, dtype=bool)
-            free[region] = True
-            frozen = np.flatnonzero(active & ~free)
+            # Every face outside the region is held at the last solve's value; only those within the energy's
+            # stencil of the region enter the region's system (frozen_faces.hpp), so the set-up costs the region.
             solver = native().ExactSolver(ops, s["order"], s["strength"], inputs.alignment, inputs.kind,
-                                          progress=self.progress, frozen_faces=frozen,
-                                          frozen_values=rec.raw[frozen], **self._weight_arguments(inputs))
+                                          progress=self.progress, free_faces=region, held_field=rec.raw,
+                                          **self._weight_arguments(inputs))
             if self._mirror is not None:
                 solver.set_symmetry(self._mirror)
             in_solver = {"dir": {}, "vec": {}, "sing": {}}
