@@ -63,7 +63,9 @@ from .solve import (
     _check_order,
     _check_strength,
     _check_weights,
+    ResultSummary,
     _face_vectors,
+    _live_result,
     _result,
     _singularity_numerators,
 )
@@ -429,6 +431,7 @@ class DesignSession(SessionGuides, SessionLive):
         else:
             region = self._live_region(inputs) if live else None
             if region is not None:
+                base = self._base_record.summary  # the result of the solve the region starts from
                 w, lam, sign_fixed = self._solve_local(ops, inputs, region)
                 self._remember_base(inputs, w, live=True)  # the next live edit starts from this field
             else:
@@ -437,9 +440,14 @@ class DesignSession(SessionGuides, SessionLive):
             mode, basis_size = "exact", None
         self._dirty = False
         self.guide_report = inputs.report
-        self.field = _result(self.mesh, ops, w, n=s["n"], order=s["order"], align=s["align"],
-                             strength=s["strength"], weights=s["weights"], lam=lam, sign_fixed=sign_fixed,
-                             t0=t0, details=details, mode=mode, basis_size=basis_size, guides=inputs.report)
+        settings = dict(n=s["n"], order=s["order"], align=s["align"], strength=s["strength"], weights=s["weights"],
+                        lam=lam, sign_fixed=sign_fixed, t0=t0, details=details, guides=inputs.report)
+        if region is not None and base is not None:  # only the region changed: update its faces of the result
+            self.field = _live_result(base, self.mesh, ops, w, region, **settings)
+        else:
+            self.field = _result(self.mesh, ops, w, mode=mode, basis_size=basis_size, **settings)
+        if mode == "exact":  # the base of the next live edit
+            self._base_record.summary = ResultSummary.of(self.field)
         self.field.live_region = None if region is None else int(len(region))
         return self.field
 
