@@ -11,7 +11,7 @@ GuideAccumulator::GuideAccumulator(int num_faces)
       largest_(Eigen::VectorXd::Zero(num_faces)) {}
 
 void GuideAccumulator::add(int face, Complex d, double w) {
-  if (!(w > 0) || !(std::abs(d) > 0)) return;
+  if (!(w > 0) || !(std::norm(d) > 0)) return;  // (not std::abs: a hypot per face and sample of a curve band)
   sum_[face] += w * d;
   total_[face] += w;
   largest_[face] = std::max(largest_[face], w);
