@@ -148,11 +148,10 @@ def measure_one(name: str, repeats: int, seed: int) -> dict:
 
 def breakdown(s, edit, repeats: int) -> dict:
     """Where the time of a live edit goes (medians, seconds): the guide computation, choosing the region, the
-    rows of E_m for it (assembly), the region solver's construction (assembly + factorization + the
-    set-up that is proportional to the whole mesh, measured alone with a one-face region), its solve, and the
-    rest of DesignSession.solve (constraints, the FieldResult of the whole mesh). Reads the session's
-    internals: a diagnostic of this benchmark, not an API."""
-    import numpy as np
+    rows of E_m for it (assembly), the region solver's construction (assembly + factorization + the set-up that
+    does not grow with the region, measured alone with a one-face region), its solve, and the rest of
+    DesignSession.solve (constraints, the live FieldResult). Reads the session's internals: a diagnostic of this
+    benchmark, not an API."""
     from nfield.core import native
 
     parts: dict[str, list] = {k: [] for k in ("guide", "region", "rows", "solver", "solver_one_face", "solve",
@@ -164,15 +163,10 @@ def breakdown(s, edit, repeats: int) -> dict:
         with common.Clock() as rg:
             region = s._live_region(inputs)
         ops, order, rec = s._operators(), s._settings["order"], s._base_record
-        active = np.asarray(s._solve_native_mesh().face_active, dtype=bool)
 
-        def build(free_faces):
-            free = np.zeros(len(active), dtype=bool)
-            free[free_faces] = True
-            frozen = np.flatnonzero(active & ~free)
+        def build(free_faces):  # as DesignSession builds a live region's solver (session_live.py)
             return native().ExactSolver(ops, order, s._settings["strength"], inputs.alignment, inputs.kind,
-                                        frozen_faces=frozen, frozen_values=rec.raw[frozen],
-                                        **s._weight_arguments(inputs))
+                                        free_faces=free_faces, held_field=rec.raw, **s._weight_arguments(inputs))
 
         with common.Clock() as rows:
             native().energy_rows(ops, order, region)
@@ -235,8 +229,9 @@ def table(results: list[dict]) -> str:
 
 #: the columns of the breakdown table: (header, key of breakdown())
 BREAKDOWN_COLUMNS = (("guide", "guide"), ("region choice", "region"), ("rows of E_m", "rows"),
-                     ("solver set-up (rows + factorization + whole-mesh part)", "solver"),
-                     ("whole-mesh part alone", "solver_one_face"), ("factorization (estimate)", "factorization_estimate"),
+                     ("solver set-up (rows + factorization + the rest)", "solver"),
+                     ("set-up of a one-face region", "solver_one_face"),
+                     ("factorization (estimate)", "factorization_estimate"),
                      ("solve", "solve"), ("rest of solve()", "rest"))
 
 

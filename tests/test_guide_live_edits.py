@@ -170,6 +170,10 @@ def test_live_region_budget_and_factorization_reuse():
         changed = np.flatnonzero((np.asarray(inputs.matrix_weight) != s._base_record.weight)
                                  | (np.asarray(inputs.alignment) != s._base_record.value))
         assert set(changed.tolist()) <= set(narrow.tolist())  # the changed faces are always solved
+        # the widest margin within the budget: changed faces grown by k rings, and k + 1 rings would not fit
+        grown, steps = native().grow_faces(s._solve_native_mesh(), changed, 9)
+        k = int(steps[np.isin(grown, narrow)].max())
+        assert np.array_equal(narrow, grown[steps <= k]) and np.count_nonzero(steps <= k + 1) > len(full) - 1
     finally:
         session_live.LIVE_REGION_BUDGET = budget
     s.solve(details=False, live=True)  # the curve's live solve: the global solve is now due

@@ -380,16 +380,19 @@ void bind_guides(py::module_& m) {
       if (f < 0 || f >= mesh->num_faces()) throw InputError("face " + std::to_string(f) + " is out of range");
       seeds.push_back(static_cast<int>(f));
     }
-    std::vector<int> out;
+    std::vector<std::pair<int, int>> reached;  // (face, dual steps from the seeds)
     {
       py::gil_scoped_release release;
       FaceWalker walker(*mesh);
-      walker.rings(seeds, rings + 1, [&](int f, int) { out.push_back(f); });
-      std::sort(out.begin(), out.end());
+      walker.rings(seeds, rings + 1, [&](int f, int ring) { reached.emplace_back(f, ring - 1); });
+      std::sort(reached.begin(), reached.end());
     }
-    return vector_array(out);
+    std::vector<int> out(reached.size()), steps(reached.size());
+    for (std::size_t i = 0; i < reached.size(); ++i) out[i] = reached[i].first, steps[i] = reached[i].second;
+    return py::make_tuple(vector_array(out), vector_array(steps));
   }, py::arg("mesh"), py::arg("faces"), py::arg("rings"),
-        "The active faces among `faces` and every active face within `rings` dual steps of them, sorted");
+        "(faces, steps): the active faces among `faces` and every active face within `rings` dual steps of them, "
+        "sorted, and the number of dual steps from `faces` to each (0 for the given faces)");
 
   m.def("cut_mesh", [](std::shared_ptr<TriangleMesh> mesh, const py::object& edges) {
     const auto cuts = to_pairs(edges, "cut edges");

@@ -2,10 +2,49 @@
 
 #include <algorithm>
 #include <string>
+#include <vector>
 
 #include "nfield/errors.hpp"
 
 namespace nfield {
+namespace {
+
+/// S X for the Hermitian S and a compressed X (columns with sorted rows), without its exact zeros: per column a
+/// dense accumulator over the rows it reaches, summed in the order of Eigen's sparse product, rows sorted. (Not
+/// Eigen's (S * X).pruned(): that evaluates into a temporary and tests every entry with a hypot.)
+ComplexSparse times_harmonic(const ComplexSparse& S, const ComplexSparse& X) {
+  const int n = static_cast<int>(S.rows()), k = static_cast<int>(X.cols());
+  std::vector<Complex> sum(n);
+  std::vector<char> reached(n, 0);
+  std::vector<int> rows, inner;
+  std::vector<Complex> values;
+  std::vector<int> outer(k + 1, 0);
+  inner.reserve(static_cast<std::size_t>(3 * X.nonZeros()));
+  values.reserve(inner.capacity());
+  for (int j = 0; j < k; ++j) {
+    rows.clear();
+    for (ComplexSparse::InnerIterator x(X, j); x; ++x)
+      for (ComplexSparse::InnerIterator it(S, x.row()); it; ++it) {
+        const int i = static_cast<int>(it.row());
+        if (!reached[i]) reached[i] = 1, sum[i] = it.value() * x.value(), rows.push_back(i);
+        else sum[i] += it.value() * x.value();
+      }
+    std::sort(rows.begin(), rows.end());
+    for (int i : rows) {
+      reached[i] = 0;
+      if (sum[i] != 0.0) inner.push_back(i), values.push_back(sum[i]);
+    }
+    outer[j + 1] = static_cast<int>(inner.size());
+  }
+  ComplexSparse out(n, k);
+  out.resizeNonZeros(static_cast<Eigen::Index>(inner.size()));
+  std::copy(outer.begin(), outer.end(), out.outerIndexPtr());
+  std::copy(inner.begin(), inner.end(), out.innerIndexPtr());
+  std::copy(values.begin(), values.end(), out.valuePtr());
+  return out;
+}
+
+}  // namespace
 
 ComplexSparse energy_columns(const FieldOperators& ops, int order, const std::vector<int>& unknowns) {
   if (order < 1 || order > 4)
@@ -35,7 +74,7 @@ ComplexSparse energy_columns(const FieldOperators& ops, int order, const std::ve
   for (int step = 1; step < order; ++step) {
     // M^-1 scales the rows, in place (times 1 / A, as energy_matrix does); then one more factor S from the left.
     for (Eigen::Index p = 0; p < cols.nonZeros(); ++p) cols.valuePtr()[p] *= 1.0 / mass[cols.innerIndexPtr()[p]];
-    cols = (S * cols).pruned();
+    cols = times_harmonic(S, cols);
   }
   return cols;
 }

@@ -91,15 +91,10 @@ class SessionLive:
             return None
         nm = self._solve_native_mesh()
         rings = 2 * self._settings["order"] + LIVE_MARGIN_EXTRA_RINGS
-        region = _grow(nm, changed, rings)
-        if len(region) > LIVE_REGION_BUDGET:  # the widest narrower margin within the budget (the seeds are ring 1)
-            narrower = changed
-            for r in range(2, rings):
-                wider = _grow(nm, changed, r)
-                if len(wider) > LIVE_REGION_BUDGET:
-                    break
-                narrower = wider
-            region = narrower
+        region, steps = _grow(nm, changed, rings)
+        if len(region) > LIVE_REGION_BUDGET:  # the widest margin within the budget (the changed faces are margin 0)
+            within = np.cumsum(np.bincount(steps, minlength=rings + 1)) <= LIVE_REGION_BUDGET
+            region = region[steps <= (int(np.flatnonzero(within)[-1]) if within.any() else 0)]
         # Whole rings of pinned singularities that the region touches (their rows cannot straddle its border).
         inside = np.zeros(T, dtype=bool)
         inside[region] = True
@@ -155,11 +150,13 @@ class SessionLive:
         return w, float(solver.lambda_), list(solver.sign_fixed_faces)
 
 
-def _grow(native_mesh, faces: np.ndarray, rings: int) -> np.ndarray:
-    """faces and every face within `rings` dual steps of them (a walk over the dual graph, native)."""
+def _grow(native_mesh, faces: np.ndarray, rings: int) -> tuple[np.ndarray, np.ndarray]:
+    """(faces and every face within `rings` dual steps of them, sorted; the steps to each) (a walk over the dual
+    graph, native)."""
     from ._loader import native
 
-    return np.asarray(native().grow_faces(native_mesh, np.asarray(faces, dtype=np.int64), int(rings)))
+    grown, steps = native().grow_faces(native_mesh, np.asarray(faces, dtype=np.int64), int(rings))
+    return np.asarray(grown), np.asarray(steps)
 
 
 def _restrict(inputs, inside: set, session) -> Any:
