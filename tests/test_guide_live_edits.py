@@ -253,7 +253,8 @@ def assert_same_result(live, full, details=True):
         assert live.singularities is None and math.isnan(live.energy)
 
 
-def test_live_result_is_updated_on_its_region_and_equals_a_full_rebuild():
+@pytest.mark.parametrize("order", [1, 2])
+def test_live_result_is_updated_on_its_region_and_equals_a_full_rebuild(order):
     """A live solve changes the raw field only on its region, so its FieldResult is the previous one with the
     region's faces recomputed, the energy changed by its change there and the singularities searched again at
     the region's vertices: equal to a full rebuild, through chained edits with and without details, and with
@@ -263,7 +264,7 @@ def test_live_result_is_updated_on_its_region_and_equals_a_full_rebuild():
     diag = mesh.native.bounding_box_diagonal
     cent = V[mesh.faces].mean(axis=1)
     normals = np.asarray(mesh.native.face_normals)
-    s = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    s = DesignSession(mesh, n=4, order=order, align="curvature-max")
     a, b = V[np.argmin(V[:, 0])], V[np.argmax(V[:, 0])]
     line = a + np.linspace(0.3, 0.5, 30)[:, None] * (b - a)
     s.set_curve("c", line, width=0.02, tolerance=0.2)

@@ -62,7 +62,9 @@ class SessionLive:
         T = self.mesh.num_triangles
         value = np.zeros(T, dtype=np.complex128) if inputs.alignment is None else np.asarray(inputs.alignment)
         weight = np.ones(T) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)
-        self._base_record = BaseRecord(self._record_key(inputs), value.copy(), weight.copy(), raw.copy())
+        # (value and weight are the session's guide arrays, never changed in place: no copies; raw is also the
+        # result's, which its user may change)
+        self._base_record = BaseRecord(self._record_key(inputs), value, weight, raw.copy())
         self._global_due = live
         if not live:
             self._base_version += 1
