@@ -174,6 +174,11 @@ def test_live_region_budget_and_factorization_reuse():
         grown, steps = native().grow_faces(s._solve_native_mesh(), changed, 9)
         k = int(steps[np.isin(grown, narrow)].max())
         assert np.array_equal(narrow, grown[steps <= k]) and np.count_nonzero(steps <= k + 1) > len(full) - 1
+        # a walk with a limit ends with the first complete step past it
+        cut, cut_steps = native().grow_faces(s._solve_native_mesh(), changed, 9, len(full) - 1)
+        last = int(cut_steps.max())
+        assert np.array_equal(cut, grown[steps <= last]) and np.array_equal(cut_steps, steps[steps <= last])
+        assert np.count_nonzero(steps < last) <= len(full) - 1 < len(cut)
     finally:
         session_live.LIVE_REGION_BUDGET = budget
     s.solve(details=False, live=True)  # the curve's live solve: the global solve is now due

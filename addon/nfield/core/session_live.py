@@ -93,7 +93,7 @@ class SessionLive:
             return None
         nm = self._solve_native_mesh()
         rings = 2 * self._settings["order"] + LIVE_MARGIN_EXTRA_RINGS
-        region, steps = _grow(nm, changed, rings)
+        region, steps = _grow(nm, changed, rings, limit=LIVE_REGION_BUDGET)
         if len(region) > LIVE_REGION_BUDGET:  # the widest margin within the budget (the changed faces are margin 0)
             within = np.cumsum(np.bincount(steps, minlength=rings + 1)) <= LIVE_REGION_BUDGET
             region = region[steps <= (int(np.flatnonzero(within)[-1]) if within.any() else 0)]
@@ -152,12 +152,13 @@ class SessionLive:
         return w, float(solver.lambda_), list(solver.sign_fixed_faces)
 
 
-def _grow(native_mesh, faces: np.ndarray, rings: int) -> tuple[np.ndarray, np.ndarray]:
+def _grow(native_mesh, faces: np.ndarray, rings: int, limit: int = -1) -> tuple[np.ndarray, np.ndarray]:
     """(faces and every face within `rings` dual steps of them, sorted; the steps to each) (a walk over the dual
-    graph, native)."""
+    graph, native). With a limit the walk ends with the first complete step past `limit` faces (the steps within
+    the limit are all there, and the region's size is known to exceed it)."""
     from ._loader import native
 
-    grown, steps = native().grow_faces(native_mesh, np.asarray(faces, dtype=np.int64), int(rings))
+    grown, steps = native().grow_faces(native_mesh, np.asarray(faces, dtype=np.int64), int(rings), int(limit))
     return np.asarray(grown), np.asarray(steps)
 
 
