@@ -44,8 +44,7 @@ FrozenFaces frozen_faces_of(const FieldOperators& ops, const py::object& frozen_
     if (!frozen_faces.is_none() || !frozen_values.is_none())
       throw InputError("give either frozen_faces and frozen_values or free_faces and held_field, not both");
     const std::vector<int> free = face_list(ops, free_faces.cast<IndexArray>(), "free");
-    const ComplexVector held = to_complex_vector(held_field.cast<ComplexArray>(), "held_field");
-    return FrozenFaces::complement(ops.mesh(), free, held);
+    return FrozenFaces::complement(ops.mesh(), free, to_complex_vector(held_field.cast<ComplexArray>(), "held_field"));
   }
   if (frozen_faces.is_none()) return {};
   const IndexArray faces = frozen_faces.cast<IndexArray>();
@@ -88,16 +87,16 @@ void bind_solvers(py::module_& m) {
                        const py::object& frozen_faces, const py::object& frozen_values, const py::object& anchor_faces,
                        bool cache_columns, const py::object& alignment_weight, const py::object& free_faces,
                        const py::object& held_field) {
-             const ComplexVector a = optional_alignment(alignment);
+             ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
              const PythonProgress cb = wrap_progress(progress);
              FrozenFaces frozen = frozen_faces_of(*ops, frozen_faces, frozen_values, free_faces, held_field);
              const std::vector<int> anchors = anchor_faces_of(*ops, anchor_faces);
-             const Eigen::VectorXd weight = optional_weights(alignment_weight);
+             Eigen::VectorXd weight = optional_weights(alignment_weight);
              return run_with_progress(cb, [&] {
                return without_gil([&] {
-                 return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, std::move(frozen), anchors,
-                                        cache_columns, weight);
+                 return new ExactSolver(ops, order, strength, std::move(a), k, lambda_override, cb.callback,
+                                        std::move(frozen), anchors, cache_columns, std::move(weight));
                });
              });
            }),

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 
 #include "nfield/constraints.hpp"
 #include "nfield/errors.hpp"
@@ -26,7 +27,7 @@ FrozenFaces FrozenFaces::listed(const TriangleMesh& mesh, const std::vector<std:
 }
 
 FrozenFaces FrozenFaces::complement(const TriangleMesh& mesh, const std::vector<int>& free_faces,
-                                    const ComplexVector& field) {
+                                    ComplexVector field) {
   const int F = mesh.num_faces();
   if (field.size() != F)
     throw InputError("the held field must have one value per face (" + std::to_string(F) + "), got " +
@@ -50,7 +51,7 @@ FrozenFaces FrozenFaces::complement(const TriangleMesh& mesh, const std::vector<
     ++count;
   }
   out.count_ = count;
-  if (count > 0) out.value_ = field;
+  if (count > 0) out.value_ = std::move(field);
   else out.flag_.clear();
   return out;
 }

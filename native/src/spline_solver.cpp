@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 #include "nfield/blas.hpp"
 #include "nfield/errors.hpp"
@@ -23,9 +24,9 @@ double strength_to_lambda(const FieldOperators& ops, int order, double strength)
 }
 
 ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength,
-                         const ComplexVector& alignment, SplineKind kind, double lambda_override,
+                         ComplexVector alignment, SplineKind kind, double lambda_override,
                          const ProgressCallback& progress, FrozenFaces frozen, const std::vector<int>& anchors,
-                         bool cache_columns, const Eigen::VectorXd& alignment_weight)
+                         bool cache_columns, Eigen::VectorXd alignment_weight)
     : ConstraintEditor(std::move(ops)), order_(order), kind_(kind), cache_columns_(cache_columns),
       frozen_(std::move(frozen)) {
   const FieldOperators& o = *ops_;
@@ -44,7 +45,7 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
       throw InputError("alignment field must have one value per face (" + std::to_string(mesh.num_faces()) +
                        "), got " + std::to_string(alignment.size()));
     if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
-    alignment_per_face_ = alignment;
+    alignment_per_face_ = std::move(alignment);
   }
   if (alignment_weight.size() > 0) {
     if (alignment_weight.size() != mesh.num_faces())
@@ -53,7 +54,7 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
     for (int f = 0; f < mesh.num_faces(); ++f)
       if (!(alignment_weight[f] >= 0) || !std::isfinite(alignment_weight[f]))
         throw InputError("alignment weight on face " + std::to_string(f) + " must be a finite number >= 0");
-    weight_per_face_ = alignment_weight;
+    weight_per_face_ = std::move(alignment_weight);
   }
   if (std::isfinite(lambda_override))
     lambda_ = lambda_override;
@@ -102,11 +103,13 @@ void ExactSolver::update_alignment() {
     for (int u = 0; u < N; ++u) alignment_[u] = alignment_per_face_[system_.face_of_unknown[u]];
   // s_0 of the safeguard: RMS alignment over the faces that are not frozen (anchors included: the value must not
   // depend on which vector constraints a solver eliminates).
-  ComplexVector not_frozen = ComplexVector::Zero(o.num_unknowns());
+  // (In the order of the unknowns, without the frozen faces: zeros do not count, so this is the same RMS as over
+  // a whole-mesh vector zero on frozen faces, without one.)
+  std::vector<Complex> not_frozen;
   if (alignment_per_face_.size() > 0)
     for (int u = 0; u < o.num_unknowns(); ++u)
-      if (!frozen_.held(o.face_of_unknown(u))) not_frozen[u] = alignment_per_face_[o.face_of_unknown(u)];
-  spike_ = safeguard_spike(not_frozen);
+      if (!frozen_.held(o.face_of_unknown(u))) not_frozen.push_back(alignment_per_face_[o.face_of_unknown(u)]);
+  spike_ = safeguard_spike(Eigen::Map<const ComplexVector>(not_frozen.data(), static_cast<Eigen::Index>(not_frozen.size())));
   component_has_alignment_.assign(std::max(1, mesh.report().num_components), false);
   for (int u = 0; u < N; ++u)
     if (std::abs(alignment_[u]) > 0) component_has_alignment_[mesh.face_component()[system_.face_of_unknown[u]]] = true;

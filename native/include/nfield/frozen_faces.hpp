@@ -28,8 +28,7 @@ class FrozenFaces {
   /// Every active face except `free_faces`, at its value in `field` (one per face). ConstraintError for a free
   /// face out of range or inactive, InputError for a repeated free face, a field of another size or a
   /// non-finite value on a held face.
-  static FrozenFaces complement(const TriangleMesh& mesh, const std::vector<int>& free_faces,
-                                const ComplexVector& field);
+  static FrozenFaces complement(const TriangleMesh& mesh, const std::vector<int>& free_faces, ComplexVector field);
 
   bool empty() const { return count_ == 0; }
   int count() const { return count_; }

@@ -133,11 +133,11 @@ class ExactSolver : public ConstraintEditor {
   /// `anchors`: faces whose n-vector constraints are eliminated (see above); ConstraintError for inactive,
   /// out-of-range, frozen or repeated faces. `cache_columns` = false: a one-shot solver (direct solves).
   /// `alignment_weight`: W per face (>= 0, finite; empty: 1 everywhere), see "Guides" above.
-  ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength, const ComplexVector& alignment,
+  ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength, ComplexVector alignment,
               SplineKind kind, double lambda_override = std::numeric_limits<double>::quiet_NaN(),
               const ProgressCallback& progress = {}, FrozenFaces frozen = {},
               const std::vector<int>& anchors = {}, bool cache_columns = true,
-              const Eigen::VectorXd& alignment_weight = Eigen::VectorXd());
+              Eigen::VectorXd alignment_weight = Eigen::VectorXd());
 
   const FieldOperators& operators() const { return *ops_; }
   int order() const { return order_; }
