@@ -120,3 +120,47 @@ def test_result_uses_summary():
     assert res.energy == energy
     assert res.singularities == list(zip(sv.tolist(), si.tolist()))
     assert sum(i for _, i in res.singularities) == pytest.approx(2.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("name", list(MESHES))
+def test_summary_of_a_region(name):
+    """What a live result recomputes when only some faces changed: their unit field and first directions
+    (field_summary_faces: the rows of field_summary, bit for bit), the singularities at their vertices
+    (singularity_indices_near: those of the full search there) and the change of the energy (energy_change:
+    the difference of the two full energies, to rounding)."""
+    V, F = MESHES[name]()
+    mesh = core.Mesh(np.asarray(V, float), np.asarray(F, np.int64))
+    ops = nat.FieldOperators(mesh.native, 4, "geometric")
+    active = np.asarray(mesh.native.face_active, dtype=bool)
+    T = mesh.num_triangles
+    rng = np.random.default_rng(7)
+    w = _random_field(T, active, rng)
+    faces = np.sort(rng.choice(T, T // 5, replace=False))
+    w2 = w.copy()
+    w2[faces] = _random_field(T, active, rng)[faces]
+    u, first, _, _, _ = nat.field_summary(ops, w, 1, False)
+    u2, first2, _, sv2, si2 = nat.field_summary(ops, w2, 1, True)
+    uf, firstf = nat.field_summary_faces(ops, w2, faces)
+    assert np.array_equal(uf, u2[faces]) and np.array_equal(firstf, first2[faces])
+    near_vertices = set(np.asarray(mesh.native.faces)[faces].ravel().tolist())
+    sv, si = nat.singularity_indices_near(ops, u2, faces)
+    assert list(sv) == sorted(sv.tolist())
+    want = {v: i for v, i in zip(sv2.tolist(), si2.tolist()) if v in near_vertices}
+    assert dict(zip(sv.tolist(), si.tolist())) == want and want  # random phases: there are some
+    for order in (1, 2, 3, 4):
+        e1 = nat.field_summary(ops, u, order, True)[2]
+        e2 = nat.field_summary(ops, u2, order, True)[2]
+        rows, cols, vals = (np.asarray(a) for a in ops.energy_matrix(order))
+        # the same sums in other orders: rounding of the full sums, ~1e-13 of the sum of |entries| (unit fields)
+        assert nat.energy_change(ops, order, u, u2, faces) == pytest.approx(e2 - e1, abs=1e-12 * np.abs(vals).sum())
+        assert nat.energy_change(ops, order, u, u, faces) == 0.0
+    with pytest.raises(ValueError, match="one value per face"):
+        nat.field_summary_faces(ops, w[:-1], faces)
+    with pytest.raises(ValueError, match="out of range"):
+        nat.field_summary_faces(ops, w, np.array([T]))
+    with pytest.raises(ValueError, match="out of range"):
+        nat.singularity_indices_near(ops, u, np.array([T + 3]))
+    with pytest.raises(ValueError, match="one value per face"):
+        nat.energy_change(ops, 2, u, u2[:-1], faces)
+    with pytest.raises(ValueError, match="order"):
+        nat.energy_change(ops, 5, u, u2, faces)

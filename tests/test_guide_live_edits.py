@@ -170,6 +170,15 @@ def test_live_region_budget_and_factorization_reuse():
         changed = np.flatnonzero((np.asarray(inputs.matrix_weight) != s._base_record.weight)
                                  | (np.asarray(inputs.alignment) != s._base_record.value))
         assert set(changed.tolist()) <= set(narrow.tolist())  # the changed faces are always solved
+        # the widest margin within the budget: changed faces grown by k rings, and k + 1 rings would not fit
+        grown, steps = native().grow_faces(s._solve_native_mesh(), changed, 9)
+        k = int(steps[np.isin(grown, narrow)].max())
+        assert np.array_equal(narrow, grown[steps <= k]) and np.count_nonzero(steps <= k + 1) > len(full) - 1
+        # a walk with a limit ends with the first complete step past it
+        cut, cut_steps = native().grow_faces(s._solve_native_mesh(), changed, 9, len(full) - 1)
+        last = int(cut_steps.max())
+        assert np.array_equal(cut, grown[steps <= last]) and np.array_equal(cut_steps, steps[steps <= last])
+        assert np.count_nonzero(steps < last) <= len(full) - 1 < len(cut)
     finally:
         session_live.LIVE_REGION_BUDGET = budget
     s.solve(details=False, live=True)  # the curve's live solve: the global solve is now due
@@ -222,3 +231,142 @@ def test_live_edits_chain_from_the_last_live_solve():
     assert np.abs(grad[moved]).max() < 1e-9 * scale
     glob = s.solve(details=False)
     assert glob.live_region is None and s.pending_work() is None
+
+
+# ---------------------------------------------------------------------------------------- live results
+def full_rebuild(session, result):
+    """The FieldResult of `result`'s raw solution computed from scratch over the whole mesh (with details)."""
+    from nfield.core.solve import _result
+
+    st = session.settings
+    return _result(session.mesh, session._operators(), result.raw_solution, n=st["n"], order=st["order"],
+                   align=st["align"], strength=st["strength"], weights=st["weights"], lam=result.lambda_,
+                   sign_fixed=[], t0=0.0, details=True)
+
+
+def assert_same_result(live, full, details=True):
+    """The live result updated on its region equals the full rebuild: the per-face arrays and the singularities
+    exactly (the same per-face arithmetic), the energy to rounding (the previous energy plus the change on the
+    region, summed in another order: relative 1e-10 leaves room for a few chained edits at ~1e-15 each)."""
+    assert np.array_equal(live.representation, full.representation)
+    assert np.array_equal(live.directions, full.directions)
+    assert np.array_equal(live.all_directions(), full.all_directions())
+    if details:
+        assert live.singularities == full.singularities
+        assert abs(live.energy - full.energy) <= 1e-10 * abs(full.energy)
+    else:
+        assert live.singularities is None and math.isnan(live.energy)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_live_result_is_updated_on_its_region_and_equals_a_full_rebuild(order):
+    """A live solve changes the raw field only on its region, so its FieldResult is the previous one with the
+    region's faces recomputed, the energy changed by its change there and the singularities searched again at
+    the region's vertices: equal to a full rebuild, through chained edits with and without details, and with
+    singularities that the edits create or remove."""
+    mesh = core_mesh("fandisk.obj")
+    V = mesh.vertices
+    diag = mesh.native.bounding_box_diagonal
+    cent = V[mesh.faces].mean(axis=1)
+    normals = np.asarray(mesh.native.face_normals)
+    s = DesignSession(mesh, n=4, order=order, align="curvature-max")
+    a, b = V[np.argmin(V[:, 0])], V[np.argmax(V[:, 0])]
+    line = a + np.linspace(0.3, 0.5, 30)[:, None] * (b - a)
+    s.set_curve("c", line, width=0.02, tolerance=0.2)
+    base = s.solve()
+    changed_singularities = 0
+    previous = base
+    for step in range(4):
+        if step % 2 == 0:
+            s.set_curve("c", line + (step + 1) * 0.004 * diag * np.array([0.0, 1.0, 0.2]), width=0.02, tolerance=0.2)
+        else:  # a comb stroke across the field, to make and unmake singularities
+            f = int(np.argmin(np.linalg.norm(cent - cent.mean(axis=0), axis=1))) if step == 1 else 200
+            path = cent[f] + np.outer(np.linspace(0, 0.1 * diag, 8), np.cross(normals[f], [0.2, 0.3, 1.0]))
+            s.comb(path, -np.gradient(path, axis=0), radius=0.04)
+        details = step != 2  # the edit after one without details falls back to a full pass for the details
+        live = s.solve(details=details, live=True)
+        assert live.live_region is not None
+        assert_same_result(live, full_rebuild(s, live), details)
+        if details and previous.singularities is not None:
+            changed_singularities += previous.singularities != live.singularities
+        previous = live
+    assert changed_singularities > 0  # the singularity update was exercised, not only carried over
+
+
+def test_live_result_of_a_polygon_mesh_shows_each_polygons_first_triangle():
+    """With polygons, a face's direction is that of its first triangle: the live result updates the polygons
+    whose first triangle lies in the region, and equals the full rebuild."""
+    V, F = meshgen.torus(R=2.0, r=0.7, nu=40, nv=14)
+    mesh = Mesh(V, F, face_to_polygon=np.arange(len(F)) // 2, num_polygons=len(F) // 2)
+    assert mesh.has_polygons
+    s = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    s.solve()
+    tri_cent = V[F].mean(axis=1)
+    tri_normals = np.asarray(mesh.native.face_normals)
+    t = 301
+    path = tri_cent[t] + np.outer(np.linspace(0, 0.6, 6), np.cross(tri_normals[t], [0.0, 0.0, 1.0]))
+    s.comb(path, np.gradient(path, axis=0), radius=0.05)
+    live = s.solve(live=True)
+    assert 0 < live.live_region < len(F)
+    assert_same_result(live, full_rebuild(s, live))
+
+
+def test_live_edit_keeps_committed_layers():
+    """A committed layer is held by every later solve: a live edit whose region reaches its faces leaves them
+    bit-identical (they are not free faces of the region)."""
+    mesh = core_mesh("fandisk.obj")
+    cent = mesh.vertices[mesh.faces].mean(axis=1)
+    diag = mesh.native.bounding_box_diagonal
+    s = DesignSession(mesh, n=4, order=2, align="curvature-max")
+    s.solve()
+    near = np.flatnonzero(np.linalg.norm(cent - cent[100], axis=1) < 0.08 * diag)
+    s.begin_region(near)
+    s.set_direction(int(near[0]), np.cross(np.asarray(mesh.native.face_normals)[near[0]], [1.0, 0.0, 0.0]))
+    s.solve()
+    layer = s.commit_region()
+    s.solve()
+    s.set_alignment_weight(np.where(np.linalg.norm(cent - cent[100], axis=1) < 0.1 * diag, 0.0, 1.0))
+    live = s.solve(details=False, live=True)
+    assert live.live_region is not None and live.live_region > 0  # solved live around the layer
+    assert np.array_equal(live.raw_solution[layer.triangles], layer.values)
+
+
+def test_region_solver_holds_every_other_face():
+    """ExactSolver(free_faces, held_field): every active face but the free ones is held at its value in the field
+    (a live region), the same solver as one given those faces as frozen_faces, bit for bit, whose unknowns are
+    the free faces only. Bad input is refused with the problem named."""
+    mesh = core_mesh("fandisk.obj")
+    ops = native().FieldOperators(mesh.native, 4)
+    align = np.asarray(native().alignment_field(ops, "curvature-max"))
+    held = np.asarray(solve(mesh, n=4, order=2, align="curvature-max").raw_solution)
+    cent = mesh.vertices[mesh.faces].mean(axis=1)
+    region = np.flatnonzero(np.linalg.norm(cent - cent[50], axis=1) < 0.1 * mesh.native.bounding_box_diagonal)
+    outside = np.setdiff1d(np.flatnonzero(np.asarray(mesh.native.face_active)), region)
+    a = native().ExactSolver(ops, 2, 1.0, align, "direction", free_faces=region, held_field=held)
+    b = native().ExactSolver(ops, 2, 1.0, align, "direction", frozen_faces=outside, frozen_values=held[outside])
+    assert a.num_unknowns == b.num_unknowns == len(region)
+    for solver in (a, b):
+        solver.set_direction_constraint(int(region[3]), 1j)
+    wa, wb = np.asarray(a.solve()), np.asarray(b.solve())
+    assert np.array_equal(wa, wb)
+    assert np.array_equal(wa[outside], held[outside]) and not np.array_equal(wa[region], held[region])
+    assert a.face_frozen(int(outside[0])) and not a.face_frozen(int(region[0]))
+    with pytest.raises(ValueError, match="frozen"):
+        a.set_direction_constraint(int(outside[0]), 1.0)
+    make = lambda **kw: native().ExactSolver(ops, 2, 1.0, align, "direction", **kw)  # noqa: E731
+    with pytest.raises(ValueError, match="go together"):
+        make(free_faces=region)
+    with pytest.raises(ValueError, match="not both"):
+        make(free_faces=region, held_field=held, frozen_faces=outside, frozen_values=held[outside])
+    with pytest.raises(ValueError, match="given twice"):
+        make(free_faces=np.r_[region, region[:1]], held_field=held)
+    with pytest.raises(ValueError, match="one value per face"):
+        make(free_faces=region, held_field=held[:-1])
+    with pytest.raises(ValueError, match="out of range"):
+        make(free_faces=np.r_[region, mesh.num_faces], held_field=held)
+    bad = held.copy()
+    bad[region[0]] = np.nan  # a free face's held value is not used
+    make(free_faces=region, held_field=bad)
+    bad[outside[0]] = np.nan
+    with pytest.raises(ValueError, match=f"held value on face {outside[0]} is not finite"):
+        make(free_faces=region, held_field=bad)

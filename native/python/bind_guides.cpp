@@ -371,7 +371,7 @@ void bind_guides(py::module_& m) {
   }, py::arg("ops"), py::arg("order"), py::arg("faces"),
         "COO triplets (face rows, face columns, values) of the rows `faces` of the energy matrix (energy_rows.hpp)");
 
-  m.def("grow_faces", [](std::shared_ptr<TriangleMesh> mesh, const IndexArray& faces, int rings) {
+  m.def("grow_faces", [](std::shared_ptr<TriangleMesh> mesh, const IndexArray& faces, int rings, long long limit) {
     if (faces.ndim() != 1) throw InputError("faces must be a 1-D integer array");
     if (rings < 0) throw ParameterError("rings must be >= 0");
     std::vector<int> seeds;
@@ -380,16 +380,21 @@ void bind_guides(py::module_& m) {
       if (f < 0 || f >= mesh->num_faces()) throw InputError("face " + std::to_string(f) + " is out of range");
       seeds.push_back(static_cast<int>(f));
     }
-    std::vector<int> out;
+    std::vector<std::pair<int, int>> reached;  // (face, dual steps from the seeds)
     {
       py::gil_scoped_release release;
       FaceWalker walker(*mesh);
-      walker.rings(seeds, rings + 1, [&](int f, int) { out.push_back(f); });
-      std::sort(out.begin(), out.end());
+      walker.rings(seeds, rings + 1, [&](int f, int ring) { reached.emplace_back(f, ring - 1); },
+                   limit < 0 ? std::numeric_limits<std::size_t>::max() : static_cast<std::size_t>(limit));
+      std::sort(reached.begin(), reached.end());
     }
-    return vector_array(out);
-  }, py::arg("mesh"), py::arg("faces"), py::arg("rings"),
-        "The active faces among `faces` and every active face within `rings` dual steps of them, sorted");
+    std::vector<int> out(reached.size()), steps(reached.size());
+    for (std::size_t i = 0; i < reached.size(); ++i) out[i] = reached[i].first, steps[i] = reached[i].second;
+    return py::make_tuple(vector_array(out), vector_array(steps));
+  }, py::arg("mesh"), py::arg("faces"), py::arg("rings"), py::arg("limit") = -1,
+        "(faces, steps): the active faces among `faces` and every active face within `rings` dual steps of them, "
+        "sorted, and the number of dual steps from `faces` to each (0 for the given faces). With a limit >= 0 the "
+        "walk ends with the first complete step that reaches more than `limit` faces");
 
   m.def("cut_mesh", [](std::shared_ptr<TriangleMesh> mesh, const py::object& edges) {
     const auto cuts = to_pairs(edges, "cut edges");

@@ -1,10 +1,12 @@
 // Binding of the operators area: nfield._native.FieldOperators (operators.hpp, per_face.hpp), principal
 // curvature and alignment fields (curvature.hpp), singularity indices and ranges (singularities.hpp), the summary
 // of a solution (field_summary.hpp).
+#include <limits>
 #include <string>
 
 #include "binding_support.hpp"
 #include "nfield/curvature.hpp"
+#include "nfield/energy_rows.hpp"
 #include "nfield/field_summary.hpp"
 #include "nfield/operators.hpp"
 #include "nfield/per_face.hpp"
@@ -15,6 +17,30 @@ namespace {
 
 void require_order(int order) {
   if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4");
+}
+
+/// (vertices, indices N / n) of singular vertices, as two arrays.
+py::tuple singularity_arrays(const FieldOperators& ops, const std::vector<VertexIndex>& singular) {
+  std::vector<int> vertices;
+  std::vector<double> indices;
+  for (const auto& s : singular) {
+    vertices.push_back(s.vertex);
+    indices.push_back(static_cast<double>(s.numerator) / ops.n());
+  }
+  return py::make_tuple(from_std(vertices), from_std(indices));
+}
+
+/// A 1-D integer array as ints (the native functions check the range).
+std::vector<int> int_list(const IndexArray& a, const char* what) {
+  if (a.ndim() != 1) throw InputError(std::string(what) + " must be a 1-D integer array");
+  std::vector<int> out(static_cast<std::size_t>(a.shape(0)));
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    const long long x = a.data()[i];
+    if (x < 0 || x > std::numeric_limits<int>::max())
+      throw InputError(std::string(what) + " " + std::to_string(x) + " is out of range");
+    out[static_cast<std::size_t>(i)] = static_cast<int>(x);
+  }
+  return out;
 }
 
 }  // namespace
@@ -95,30 +121,42 @@ void bind_operators(py::module_& m) {
 
   m.def("singularity_indices", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& z) {
     const ComplexVector field = to_complex_vector(z, "field");
-    const auto idx = without_gil([&] { return singularity_indices(*ops, field); });
-    std::vector<int> v;
-    std::vector<double> x;
-    for (const auto& s : idx) {
-      v.push_back(s.vertex);
-      x.push_back(static_cast<double>(s.numerator) / ops->n());
-    }
-    return py::make_tuple(from_std(v), from_std(x));
+    return singularity_arrays(*ops, without_gil([&] { return singularity_indices(*ops, field); }));
   }, py::arg("ops"), py::arg("z"));
+
+  m.def("singularity_indices_near", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& z,
+                                       const IndexArray& faces) {
+    const ComplexVector field = to_complex_vector(z, "field");
+    const std::vector<int> list = int_list(faces, "face");
+    return singularity_arrays(*ops, without_gil([&] { return singularity_indices_near(*ops, field, list); }));
+  }, py::arg("ops"), py::arg("z"), py::arg("faces"),
+        "(vertices, indices) of the singular vertices among the vertices of `faces`, in vertex order");
 
   m.def("field_summary", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& raw, int order, bool details) {
     const ComplexVector w = to_complex_vector(raw, "field");
     const FieldSummary s = without_gil([&] { return summarize_field(*ops, w, order, details); });
-    std::vector<int> vertices;
-    std::vector<double> indices;
-    for (const auto& v : s.singularities) {
-      vertices.push_back(v.vertex);
-      indices.push_back(static_cast<double>(v.numerator) / ops->n());
-    }
-    return py::make_tuple(from_complex(s.unit), from_rows(s.first_direction), s.energy, from_std(vertices),
-                          from_std(indices));
+    const py::tuple singular = singularity_arrays(*ops, s.singularities);
+    return py::make_tuple(from_complex(s.unit), from_rows(s.first_direction), s.energy, singular[0], singular[1]);
   }, py::arg("ops"), py::arg("raw"), py::arg("order"), py::arg("details") = true,
         "(unit field, first direction per face (F, 3), energy E_order of the unit field, singular vertices, their "
         "indices) of a raw solution per face; without details the energy is NaN and there are no singularities");
+
+  m.def("field_summary_faces", [](std::shared_ptr<FieldOperators> ops, const ComplexArray& raw,
+                                  const IndexArray& faces) {
+    const ComplexVector w = to_complex_vector(raw, "field");
+    const std::vector<int> list = int_list(faces, "face");
+    const FieldSummary s = without_gil([&] { return summarize_faces(*ops, w, list); });
+    return py::make_tuple(from_complex(s.unit), from_rows(s.first_direction));
+  }, py::arg("ops"), py::arg("raw"), py::arg("faces"),
+        "(unit field, first direction (k, 3)) of a raw solution per face on `faces` only (a live local solve)");
+
+  m.def("energy_change", [](std::shared_ptr<FieldOperators> ops, int order, const ComplexArray& before,
+                            const ComplexArray& after, const IndexArray& faces) {
+    const ComplexVector a = to_complex_vector(before, "before"), b = to_complex_vector(after, "after");
+    const std::vector<int> list = int_list(faces, "face");
+    return without_gil([&] { return energy_change(*ops, order, a, b, list); });
+  }, py::arg("ops"), py::arg("order"), py::arg("before"), py::arg("after"), py::arg("faces"),
+        "E_order(after) - E_order(before) for two fields per face that differ only on `faces` (energy_rows.hpp)");
 
   m.def("singularity_numerator_range", [](std::shared_ptr<FieldOperators> ops, int vertex) {
     return singularity_numerator_range(*ops, vertex);

@@ -20,22 +20,42 @@ SplineKind parse_kind(const std::string& kind) {
   throw ParameterError("unknown spline kind '" + kind + "' (expected 'direction' or 'vector')");
 }
 
-/// The frozen faces of ExactSolver: None, or equal-length 1-D arrays of faces and their fixed values.
-std::vector<std::pair<int, Complex>> frozen_faces_of(const FieldOperators& ops, const py::object& frozen_faces,
-                                                     const py::object& frozen_values) {
-  std::vector<std::pair<int, Complex>> frozen;
-  if (frozen_faces.is_none()) return frozen;
+/// Face indices from a 1-D integer array, each in range (ConstraintError naming `what` otherwise).
+std::vector<int> face_list(const FieldOperators& ops, const IndexArray& faces, const char* what) {
+  if (faces.ndim() != 1) throw InputError(std::string(what) + " must be a 1-D array of face indices");
+  std::vector<int> out;
+  out.reserve(static_cast<std::size_t>(faces.shape(0)));
+  for (py::ssize_t i = 0; i < faces.shape(0); ++i) {
+    const long long f = faces.data()[i];
+    if (f < 0 || f >= ops.mesh().num_faces())
+      throw ConstraintError(std::string(what) + " face " + std::to_string(f) + " is out of range");
+    out.push_back(static_cast<int>(f));
+  }
+  return out;
+}
+
+/// The frozen faces of ExactSolver: either frozen_faces with frozen_values (equal-length 1-D arrays), or
+/// free_faces with held_field (every other active face held at its value in the field: a live region), or none.
+FrozenFaces frozen_faces_of(const FieldOperators& ops, const py::object& frozen_faces, const py::object& frozen_values,
+                            const py::object& free_faces, const py::object& held_field) {
+  if (!free_faces.is_none() || !held_field.is_none()) {
+    if (free_faces.is_none() || held_field.is_none())
+      throw InputError("free_faces and held_field go together (the region and the field held around it)");
+    if (!frozen_faces.is_none() || !frozen_values.is_none())
+      throw InputError("give either frozen_faces and frozen_values or free_faces and held_field, not both");
+    const std::vector<int> free = face_list(ops, free_faces.cast<IndexArray>(), "free");
+    return FrozenFaces::complement(ops.mesh(), free, to_complex_vector(held_field.cast<ComplexArray>(), "held_field"));
+  }
+  if (frozen_faces.is_none()) return {};
   const IndexArray faces = frozen_faces.cast<IndexArray>();
   const ComplexArray values = frozen_values.cast<ComplexArray>();
   if (faces.ndim() != 1 || values.ndim() != 1 || faces.shape(0) != values.shape(0))
     throw InputError("frozen_faces and frozen_values must be 1-D arrays of equal length");
-  for (py::ssize_t i = 0; i < faces.shape(0); ++i) {
-    const long long f = faces.data()[i];
-    if (f < 0 || f >= ops.mesh().num_faces())
-      throw ConstraintError("frozen face " + std::to_string(f) + " is out of range");
-    frozen.emplace_back(static_cast<int>(f), values.data()[i]);
-  }
-  return frozen;
+  const std::vector<int> list = face_list(ops, faces, "frozen");
+  std::vector<std::pair<int, Complex>> frozen;
+  frozen.reserve(list.size());
+  for (std::size_t i = 0; i < list.size(); ++i) frozen.emplace_back(list[i], values.data()[i]);
+  return FrozenFaces::listed(ops.mesh(), frozen);
 }
 
 /// Per-face alignment weights of ExactSolver: None (empty: weight 1 everywhere) or a 1-D float array; the solver
@@ -49,17 +69,8 @@ Eigen::VectorXd optional_weights(const py::object& weights) {
 
 /// Face indices of the substituted vector constraints (ExactSolver anchors), validated against the mesh.
 std::vector<int> anchor_faces_of(const FieldOperators& ops, const py::object& anchor_faces) {
-  std::vector<int> anchors;
-  if (anchor_faces.is_none()) return anchors;
-  const IndexArray faces = anchor_faces.cast<IndexArray>();
-  if (faces.ndim() != 1) throw InputError("anchor_faces must be a 1-D array of face indices");
-  for (py::ssize_t i = 0; i < faces.shape(0); ++i) {
-    const long long f = faces.data()[i];
-    if (f < 0 || f >= ops.mesh().num_faces())
-      throw ConstraintError("anchor face " + std::to_string(f) + " is out of range");
-    anchors.push_back(static_cast<int>(f));
-  }
-  return anchors;
+  if (anchor_faces.is_none()) return {};
+  return face_list(ops, anchor_faces.cast<IndexArray>(), "anchor");
 }
 
 }  // namespace
@@ -74,17 +85,18 @@ void bind_solvers(py::module_& m) {
       .def(py::init([](std::shared_ptr<FieldOperators> ops, int order, double strength, const py::object& alignment,
                        const std::string& kind, double lambda_override, const py::object& progress,
                        const py::object& frozen_faces, const py::object& frozen_values, const py::object& anchor_faces,
-                       bool cache_columns, const py::object& alignment_weight) {
-             const ComplexVector a = optional_alignment(alignment);
+                       bool cache_columns, const py::object& alignment_weight, const py::object& free_faces,
+                       const py::object& held_field) {
+             ComplexVector a = optional_alignment(alignment);
              const SplineKind k = parse_kind(kind);
              const PythonProgress cb = wrap_progress(progress);
-             const std::vector<std::pair<int, Complex>> frozen = frozen_faces_of(*ops, frozen_faces, frozen_values);
+             FrozenFaces frozen = frozen_faces_of(*ops, frozen_faces, frozen_values, free_faces, held_field);
              const std::vector<int> anchors = anchor_faces_of(*ops, anchor_faces);
-             const Eigen::VectorXd weight = optional_weights(alignment_weight);
+             Eigen::VectorXd weight = optional_weights(alignment_weight);
              return run_with_progress(cb, [&] {
                return without_gil([&] {
-                 return new ExactSolver(ops, order, strength, a, k, lambda_override, cb.callback, frozen, anchors,
-                                        cache_columns, weight);
+                 return new ExactSolver(ops, order, strength, std::move(a), k, lambda_override, cb.callback,
+                                        std::move(frozen), anchors, cache_columns, std::move(weight));
                });
              });
            }),
@@ -93,9 +105,12 @@ void bind_solvers(py::module_& m) {
            py::arg("progress") = py::none(), py::arg("frozen_faces") = py::none(),
            py::arg("frozen_values") = py::none(), py::arg("anchor_faces") = py::none(),
            py::arg("cache_columns") = true, py::arg("alignment_weight") = py::none(),
+           py::arg("free_faces") = py::none(), py::arg("held_field") = py::none(),
            "Factor V = E_order - lambda M_W over the faces that are neither frozen (they keep their values) nor "
            "anchors (faces whose vector constraints are substituted); W the per-face alignment weight (1 by default); "
-           "cache_columns=False: a one-shot solver")
+           "cache_columns=False: a one-shot solver. The frozen faces are frozen_faces at frozen_values, or every "
+           "active face but free_faces at its value in held_field (one per face: a local solve whose cost follows "
+           "the free faces, not the held ones)")
       .def("set_alignment", [](ExactSolver& s, const py::object& alignment) {
         const ComplexVector a = optional_alignment(alignment);
         without_gil([&] { s.set_alignment(a); });

@@ -7,15 +7,6 @@
 #include "nfield/face_regions.hpp"
 
 namespace nfield {
-namespace {
-
-Complex unit_representation(const TangentFrames& frames, int f, const Eigen::Vector3d& v, int n) {
-  const Complex t = frames.to_tangent(f, v);
-  if (!(std::abs(t) > 1e-9 * v.norm())) return 0.0;
-  return std::polar(1.0, n * std::arg(t));
-}
-
-}  // namespace
 
 ProjectedCurve project_curve(const TriangleTree& tree, const std::vector<Eigen::Vector3d>& points, double spacing,
                              double tolerance) {

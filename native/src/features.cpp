@@ -12,15 +12,6 @@ namespace {
 
 constexpr double kDegree = M_PI / 180.0;
 
-/// Unit representation vector (symmetry n) of the 3D vector v projected into face f; 0 if v is (nearly)
-/// normal to the face.
-Complex unit_representation(const TangentFrames& frames, int f, const Eigen::Vector3d& v, int n) {
-  const Complex t = frames.to_tangent(f, v);
-  const double len = std::abs(t);
-  if (!(len > 1e-9 * v.norm())) return 0.0;
-  return std::polar(1.0, n * std::arg(t));
-}
-
 /// The feature edges with the vertex they are walked from: edge e of chain goes vertices[i] -> vertices[i+1].
 Eigen::Vector3d chain_edge_vector(const TriangleMesh& mesh, const FeatureChain& chain, std::size_t i) {
   const auto& P = mesh.positions();

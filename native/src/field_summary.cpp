@@ -34,6 +34,18 @@ Complex root_direction(Complex u, int n) {
   return u;
 }
 
+/// u_f and the first direction of one raw value (both zero where raw is 0).
+void summarize_face(const FieldOperators& ops, Complex raw, int face, Complex& unit, Eigen::Ref<Eigen::RowVector3d> first) {
+  const double magnitude = std::abs(raw);
+  unit = magnitude > 0 ? Complex(raw.real() / magnitude, raw.imag() / magnitude) : Complex(0.0);
+  first.setZero();
+  if (unit == 0.0) return;
+  const Complex d = root_direction(unit, ops.n());
+  const Eigen::Vector3d& x = ops.frames().x_axis(face);
+  const Eigen::Vector3d& y = ops.frames().y_axis(face);
+  for (int k = 0; k < 3; ++k) first[k] = d.real() * x[k] + d.imag() * y[k];
+}
+
 }  // namespace
 
 FieldSummary summarize_field(const FieldOperators& ops, const ComplexVector& raw, int order, bool details) {
@@ -45,22 +57,28 @@ FieldSummary summarize_field(const FieldOperators& ops, const ComplexVector& raw
   if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
   FieldSummary out;
   out.unit = ComplexVector::Zero(F);
-  for (int f = 0; f < F; ++f) {
-    const double magnitude = std::abs(raw[f]);
-    if (magnitude > 0) out.unit[f] = Complex(raw[f].real() / magnitude, raw[f].imag() / magnitude);
-  }
   out.first_direction = Vectors3::Zero(F, 3);
-  const int n = ops.n();
-  for (int f = 0; f < F; ++f) {
-    if (out.unit[f] == 0.0) continue;
-    const Complex d = root_direction(out.unit[f], n);
-    const Eigen::Vector3d& x = ops.frames().x_axis(f);
-    const Eigen::Vector3d& y = ops.frames().y_axis(f);
-    for (int k = 0; k < 3; ++k) out.first_direction(f, k) = d.real() * x[k] + d.imag() * y[k];
-  }
+  for (int f = 0; f < F; ++f) summarize_face(ops, raw[f], f, out.unit[f], out.first_direction.row(f));
   if (details) {
     out.energy = ops.energy(ops.to_unknowns(out.unit), order);
     out.singularities = singularity_indices(ops, out.unit);
+  }
+  return out;
+}
+
+FieldSummary summarize_faces(const FieldOperators& ops, const ComplexVector& raw, const std::vector<int>& faces) {
+  const int F = ops.mesh().num_faces();
+  if (raw.size() != F)
+    throw InputError("field must have one value per face (" + std::to_string(F) + "), got " +
+                     std::to_string(raw.size()));
+  const Eigen::Index k = static_cast<Eigen::Index>(faces.size());
+  FieldSummary out;
+  out.unit = ComplexVector::Zero(k);
+  out.first_direction = Vectors3::Zero(k, 3);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const int f = faces[static_cast<std::size_t>(i)];
+    if (f < 0 || f >= F) throw InputError("face " + std::to_string(f) + " is out of range");
+    summarize_face(ops, raw[f], f, out.unit[i], out.first_direction.row(i));
   }
   return out;
 }

@@ -5,13 +5,25 @@
 
 namespace nfield {
 
+Complex unit_representation(const TangentFrames& frames, int f, const Eigen::Vector3d& v, int n) {
+  const Complex t = frames.to_tangent(f, v);
+  const double len = std::abs(t);
+  if (!(len > 1e-9 * v.norm())) return 0.0;
+  Complex base = t / len, out = 1.0;
+  for (int k = n; k > 0; k >>= 1) {
+    if (k & 1) out *= base;
+    if (k > 1) base *= base;
+  }
+  return out;
+}
+
 GuideAccumulator::GuideAccumulator(int num_faces)
     : sum_(Eigen::VectorXcd::Zero(num_faces)),
       total_(Eigen::VectorXd::Zero(num_faces)),
       largest_(Eigen::VectorXd::Zero(num_faces)) {}
 
 void GuideAccumulator::add(int face, Complex d, double w) {
-  if (!(w > 0) || !(std::abs(d) > 0)) return;
+  if (!(w > 0) || !(std::norm(d) > 0)) return;  // (not std::abs: a hypot per face and sample of a curve band)
   sum_[face] += w * d;
   total_[face] += w;
   largest_[face] = std::max(largest_[face], w);

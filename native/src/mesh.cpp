@@ -815,6 +815,12 @@ TriangleMesh::TriangleMesh(const Positions& positions, const Triangles& faces) {
   DualGraph dual = build_dual_graph(faces_, edges, orientation);
   face_dual_edges_ = face_dual_lists(dual, num_faces);
   dual_edges_ = std::move(dual.edges);
+  face_neighbors_.assign(static_cast<std::size_t>(num_faces), {-1, -1, -1});
+  for (int f = 0; f < num_faces; ++f)
+    for (std::size_t k = 0; k < face_dual_edges_[static_cast<std::size_t>(f)].size(); ++k) {
+      const DualEdge& d = dual_edges_[static_cast<std::size_t>(face_dual_edges_[static_cast<std::size_t>(f)][k])];
+      face_neighbors_[static_cast<std::size_t>(f)][k] = d.face0 == f ? d.face1 : d.face0;
+    }
   face_component_ = std::move(orientation.component);
   report_.num_components = orientation.num_components;
 

@@ -97,6 +97,27 @@ std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const Co
   return out;
 }
 
+std::vector<VertexIndex> singularity_indices_near(const FieldOperators& ops, const ComplexVector& field,
+                                                  const std::vector<int>& faces) {
+  const TriangleMesh& mesh = ops.mesh();
+  if (field.size() != mesh.num_faces())
+    throw InputError("field must have one value per face (" + std::to_string(mesh.num_faces()) + ")");
+  std::vector<int> vertices;
+  vertices.reserve(3 * faces.size());
+  for (int f : faces) {
+    if (f < 0 || f >= mesh.num_faces()) throw InputError("face " + std::to_string(f) + " is out of range");
+    for (int c = 0; c < 3; ++c) vertices.push_back(mesh.faces()(f, c));
+  }
+  std::sort(vertices.begin(), vertices.end());
+  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  std::vector<VertexIndex> out;
+  for (int v : vertices) {
+    int numerator = 0;
+    if (ring_index_numerator(ops, field, v, numerator) && numerator != 0) out.push_back({v, numerator});
+  }
+  return out;
+}
+
 bool ring_index_numerator(const FieldOperators& ops, const ComplexVector& field, int v, int& numerator) {
   if (!ring_usable(ops.mesh(), field, v)) return false;
   numerator = ring_numerator(ops, v, [&](int e) { return edge_turning(ops, field, e); });

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 #include "nfield/blas.hpp"
 #include "nfield/errors.hpp"
@@ -23,20 +24,14 @@ double strength_to_lambda(const FieldOperators& ops, int order, double strength)
 }
 
 ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength,
-                         const ComplexVector& alignment, SplineKind kind, double lambda_override,
-                         const ProgressCallback& progress, const std::vector<std::pair<int, Complex>>& frozen,
-                         const std::vector<int>& anchors, bool cache_columns, const Eigen::VectorXd& alignment_weight)
-    : ConstraintEditor(std::move(ops)), order_(order), kind_(kind), cache_columns_(cache_columns), frozen_(frozen) {
+                         ComplexVector alignment, SplineKind kind, double lambda_override,
+                         const ProgressCallback& progress, FrozenFaces frozen, const std::vector<int>& anchors,
+                         bool cache_columns, Eigen::VectorXd alignment_weight)
+    : ConstraintEditor(std::move(ops)), order_(order), kind_(kind), cache_columns_(cache_columns),
+      frozen_(std::move(frozen)) {
   const FieldOperators& o = *ops_;
   const TriangleMesh& mesh = o.mesh();
   if (order < 1 || order > 4) throw ParameterError("energy order must be 1 to 4, got " + std::to_string(order));
-  for (size_t i = 0; i < frozen_.size(); ++i) {
-    const int f = frozen_[i].first;
-    require_constrainable_face(mesh, f);
-    if (!std::isfinite(std::abs(frozen_[i].second)))
-      throw InputError("frozen value on face " + std::to_string(f) + " is not finite");
-    if (!frozen_index_.emplace(f, i).second) throw InputError("face " + std::to_string(f) + " is frozen twice");
-  }
   anchors_ = anchors;
   std::sort(anchors_.begin(), anchors_.end());
   for (size_t i = 0; i < anchors_.size(); ++i) {
@@ -50,7 +45,7 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
       throw InputError("alignment field must have one value per face (" + std::to_string(mesh.num_faces()) +
                        "), got " + std::to_string(alignment.size()));
     if (!alignment.allFinite()) throw InputError("alignment field contains NaN or infinite values");
-    alignment_per_face_ = alignment;
+    alignment_per_face_ = std::move(alignment);
   }
   if (alignment_weight.size() > 0) {
     if (alignment_weight.size() != mesh.num_faces())
@@ -59,7 +54,7 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
     for (int f = 0; f < mesh.num_faces(); ++f)
       if (!(alignment_weight[f] >= 0) || !std::isfinite(alignment_weight[f]))
         throw InputError("alignment weight on face " + std::to_string(f) + " must be a finite number >= 0");
-    weight_per_face_ = alignment_weight;
+    weight_per_face_ = std::move(alignment_weight);
   }
   if (std::isfinite(lambda_override))
     lambda_ = lambda_override;
@@ -72,12 +67,8 @@ ExactSolver::ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, d
 
 void ExactSolver::factor(const ProgressCallback& progress) {
   const FieldOperators& o = *ops_;
-  std::vector<int> fixed;
-  fixed.reserve(frozen_.size() + anchors_.size());
-  for (const auto& [f, z] : frozen_) fixed.push_back(f);
-  fixed.insert(fixed.end(), anchors_.begin(), anchors_.end());
   if (progress && !progress(0.0)) throw Cancelled("factorization cancelled");
-  SplineSystem system = assemble_spline_system(o, order_, lambda_, fixed, weight_per_face_);
+  SplineSystem system = assemble_spline_system(o, order_, lambda_, frozen_, anchors_, weight_per_face_);
   const int N = system.num_unknowns();
   if (N == 0 && anchors_.empty()) throw ConstraintError("every face is frozen: nothing is left to solve for");
   std::unique_ptr<HermitianFactor> factor;
@@ -112,24 +103,28 @@ void ExactSolver::update_alignment() {
     for (int u = 0; u < N; ++u) alignment_[u] = alignment_per_face_[system_.face_of_unknown[u]];
   // s_0 of the safeguard: RMS alignment over the faces that are not frozen (anchors included: the value must not
   // depend on which vector constraints a solver eliminates).
-  ComplexVector not_frozen = ComplexVector::Zero(o.num_unknowns());
+  // (In the order of the unknowns, without the frozen faces: zeros do not count, so this is the same RMS as over
+  // a whole-mesh vector zero on frozen faces, without one.)
+  std::vector<Complex> not_frozen;
   if (alignment_per_face_.size() > 0)
     for (int u = 0; u < o.num_unknowns(); ++u)
-      if (!frozen_index_.count(o.face_of_unknown(u))) not_frozen[u] = alignment_per_face_[o.face_of_unknown(u)];
-  spike_ = safeguard_spike(not_frozen);
+      if (!frozen_.held(o.face_of_unknown(u))) not_frozen.push_back(alignment_per_face_[o.face_of_unknown(u)]);
+  spike_ = safeguard_spike(Eigen::Map<const ComplexVector>(not_frozen.data(), static_cast<Eigen::Index>(not_frozen.size())));
   component_has_alignment_.assign(std::max(1, mesh.report().num_components), false);
   for (int u = 0; u < N; ++u)
     if (std::abs(alignment_[u]) > 0) component_has_alignment_[mesh.face_component()[system_.face_of_unknown[u]]] = true;
-  for (const auto& [f, z] : frozen_)
-    if (std::abs(z) > 0) component_has_alignment_[mesh.face_component()[f]] = true;
+  frozen_.for_each([&](int f, Complex z) {
+    if (z != 0.0) component_has_alignment_[mesh.face_component()[f]] = true;
+  });
 
   // b0 = rhs_scale M u' - V_UF z_frozen; its response now for live solvers (a one-shot solver folds the anchors'
   // values and the safeguard into one right-hand side and solves once, in solve()).
   const double rhs_scale = kind_ == SplineKind::Direction ? 1.0 : -lambda_;
   b0_ = rhs_scale * system_.mass.cast<Complex>().cwiseProduct(alignment_);
-  if (!frozen_.empty()) {
+  if (!frozen_.empty()) {  // the frozen faces within the stencil of the unknowns (the anchors' entries stay 0)
     ComplexVector z = ComplexVector::Zero(static_cast<Eigen::Index>(system_.fixed_faces.size()));
-    for (const auto& [f, value] : frozen_) z[system_.fixed_of_face[f]] = value;
+    for (size_t i = 0; i < system_.fixed_faces.size(); ++i)
+      if (frozen_.held(system_.fixed_faces[i])) z[static_cast<Eigen::Index>(i)] = frozen_.value(system_.fixed_faces[i]);
     b0_ -= system_.coupling * z;
   }
   // (b0 = 0 without alignment and frozen values: its response is zero, no solve.)
@@ -158,12 +153,12 @@ void ExactSolver::set_symmetry(std::shared_ptr<const MirrorMap> mirror) {
     if (mirror->num_faces() != ops_->mesh().num_faces())
       throw InputError("the mirror map belongs to another mesh (" + std::to_string(mirror->num_faces()) +
                        " faces, not " + std::to_string(ops_->mesh().num_faces()) + ")");
-    for (const auto& [f, z] : frozen_) {
+    frozen_.for_each([&](int f, Complex) {
       const int g = mirror->partner(f);
-      if (g >= 0 && !frozen_index_.count(g))
+      if (g >= 0 && !frozen_.held(g))
         throw ConstraintError("face " + std::to_string(g) + " is free but its mirror face " + std::to_string(f) +
                               " is frozen: with mirror symmetry both must be free or both frozen");
-    }
+    });
   }
   mirror_ = std::move(mirror);
   smoothest_.resize(0);
@@ -246,14 +241,13 @@ void ExactSolver::symmetric_refinement(ComplexVector& field, const ComplexVector
 ComplexVector ExactSolver::to_faces(const ComplexVector& per_unknown) const {
   ComplexVector out = ComplexVector::Zero(ops_->mesh().num_faces());
   for (int u = 0; u < num_unknowns(); ++u) out[system_.face_of_unknown[u]] = per_unknown[u];
-  for (const auto& [f, z] : frozen_) out[f] = z;  // bit-identical copy
+  frozen_.copy_into(out);  // bit-identical copy
   for (int f : anchors_) out[f] = fixed_value(f);
   return out;
 }
 
 Complex ExactSolver::fixed_value(int face) const {
-  const auto frozen = frozen_index_.find(face);
-  if (frozen != frozen_index_.end()) return frozen_[frozen->second].second;
+  if (frozen_.held(face)) return frozen_.value(face);
   const auto c = constraints_.faces.find(face);
   if (c != constraints_.faces.end() && c->second.kind == ConstraintSet::Kind::Vector) return c->second.value;
   if (mirror_ && mirror_->partner(face) >= 0) {  // an anchor because its mirror face carries the constraint

@@ -63,7 +63,9 @@ from .solve import (
     _check_order,
     _check_strength,
     _check_weights,
+    ResultSummary,
     _face_vectors,
+    _live_result,
     _result,
     _singularity_numerators,
 )
@@ -94,7 +96,31 @@ class _SolveInputs:
     alignment: Any      # combined guide field per triangle (complex) or None
     matrix_weight: Any  # per-triangle weight of the alignment term in n-vector splines, or None
     report: Any         # GuideReport
-    weight_digest: Any  # hash of matrix_weight when it is not uniformly 1, else None
+    weight_digest: Any  # WeightDigest of matrix_weight when it is not uniformly 1, else None
+
+
+class WeightDigest:
+    """The digest of non-uniform guide weights (part of the exact solver's key), computed when first compared:
+    a live edit, keyed by its region's own weights, never needs it (0.7 ms on 86k faces). The weights are the
+    session's own array, never changed in place."""
+
+    __slots__ = ("_weight", "_digest")
+
+    def __init__(self, weight: np.ndarray) -> None:
+        self._weight, self._digest = weight, None
+
+    @property
+    def digest(self) -> str:
+        if self._digest is None:
+            self._digest = hashlib.blake2b(np.ascontiguousarray(self._weight).tobytes(), digest_size=16).hexdigest()
+            self._weight = None
+        return self._digest
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, WeightDigest) and (self is other or self.digest == other.digest)
+
+    def __hash__(self) -> int:
+        return hash(self.digest)
 
 
 def _token() -> int:
@@ -429,6 +455,7 @@ class DesignSession(SessionGuides, SessionLive):
         else:
             region = self._live_region(inputs) if live else None
             if region is not None:
+                base = self._base_record.summary  # the result of the solve the region starts from
                 w, lam, sign_fixed = self._solve_local(ops, inputs, region)
                 self._remember_base(inputs, w, live=True)  # the next live edit starts from this field
             else:
@@ -437,9 +464,14 @@ class DesignSession(SessionGuides, SessionLive):
             mode, basis_size = "exact", None
         self._dirty = False
         self.guide_report = inputs.report
-        self.field = _result(self.mesh, ops, w, n=s["n"], order=s["order"], align=s["align"],
-                             strength=s["strength"], weights=s["weights"], lam=lam, sign_fixed=sign_fixed,
-                             t0=t0, details=details, mode=mode, basis_size=basis_size, guides=inputs.report)
+        settings = dict(n=s["n"], order=s["order"], align=s["align"], strength=s["strength"], weights=s["weights"],
+                        lam=lam, sign_fixed=sign_fixed, t0=t0, details=details, guides=inputs.report)
+        if region is not None and base is not None:  # only the region changed: update its faces of the result
+            self.field = _live_result(base, self.mesh, ops, w, region, **settings)
+        else:
+            self.field = _result(self.mesh, ops, w, mode=mode, basis_size=basis_size, **settings)
+        if mode == "exact":  # the base of the next live edit
+            self._base_record.summary = ResultSummary.of(self.field)
         self.field.live_region = None if region is None else int(len(region))
         return self.field
 
@@ -515,8 +547,7 @@ class DesignSession(SessionGuides, SessionLive):
             weight = self._guided_value[1]
             active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
             uniform = weight is None or bool(np.all(weight[active] == 1.0))
-            self._weight_digest = None if uniform else hashlib.blake2b(
-                np.ascontiguousarray(weight).tobytes(), digest_size=16).hexdigest()
+            self._weight_digest = None if uniform else WeightDigest(weight)
         return self._guided_value
 
     def _exact_key(self, inputs: "_SolveInputs") -> tuple:

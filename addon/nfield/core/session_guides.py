@@ -407,12 +407,12 @@ class SessionGuides:
             # E_m alone is singular there. Such a component is solved as the paper's unaligned spline: weight 1,
             # target 0 (its field follows the constraints and smoothness only, as intended).
             comp = np.asarray(self._solve_native_mesh().face_component)
-            active = comp >= 0
-            total = np.bincount(comp[active], weights=(weight * areas)[active], minlength=int(comp.max()) + 1)
+            # (inactive faces, component -1, land in bin 0: no fancy indexing over the whole mesh per edit)
+            total = np.bincount(comp + 1, weights=weight * areas, minlength=int(comp.max()) + 2)[1:]
             dead = np.flatnonzero(total <= 0)
             if dead.size:
                 weight = weight.copy()
-                weight[active & np.isin(comp, dead)] = 1.0
+                weight[(comp >= 0) & np.isin(comp, dead)] = 1.0
                 report.unweighted_components = int(dead.size)
         hard = self._engine.hard_directions(self._guide, n, report)
         if self._cut is not None:

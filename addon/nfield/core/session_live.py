@@ -38,6 +38,7 @@ class BaseRecord:
     value: np.ndarray        # guide target value per triangle (zeros without guides)
     weight: np.ndarray       # guide weight per triangle (ones without guides)
     raw: np.ndarray          # raw solution per triangle
+    summary: Any = None      # ResultSummary of the solve's FieldResult (live results update it on their region)
 
 
 class SessionLive:
@@ -61,7 +62,9 @@ class SessionLive:
         T = self.mesh.num_triangles
         value = np.zeros(T, dtype=np.complex128) if inputs.alignment is None else np.asarray(inputs.alignment)
         weight = np.ones(T) if inputs.matrix_weight is None else np.asarray(inputs.matrix_weight)
-        self._base_record = BaseRecord(self._record_key(inputs), value.copy(), weight.copy(), raw.copy())
+        # (value and weight are the session's guide arrays, never changed in place: no copies; raw is also the
+        # result's, which its user may change)
+        self._base_record = BaseRecord(self._record_key(inputs), value, weight, raw.copy())
         self._global_due = live
         if not live:
             self._base_version += 1
@@ -90,15 +93,10 @@ class SessionLive:
             return None
         nm = self._solve_native_mesh()
         rings = 2 * self._settings["order"] + LIVE_MARGIN_EXTRA_RINGS
-        region = _grow(nm, changed, rings)
-        if len(region) > LIVE_REGION_BUDGET:  # the widest narrower margin within the budget (the seeds are ring 1)
-            narrower = changed
-            for r in range(2, rings):
-                wider = _grow(nm, changed, r)
-                if len(wider) > LIVE_REGION_BUDGET:
-                    break
-                narrower = wider
-            region = narrower
+        region, steps = _grow(nm, changed, rings, limit=LIVE_REGION_BUDGET)
+        if len(region) > LIVE_REGION_BUDGET:  # the widest margin within the budget (the changed faces are margin 0)
+            within = np.cumsum(np.bincount(steps, minlength=rings + 1)) <= LIVE_REGION_BUDGET
+            region = region[steps <= (int(np.flatnonzero(within)[-1]) if within.any() else 0)]
         # Whole rings of pinned singularities that the region touches (their rows cannot straddle its border).
         inside = np.zeros(T, dtype=bool)
         inside[region] = True
@@ -109,8 +107,9 @@ class SessionLive:
         if self._mirror is not None:  # the symmetric solve needs a face and its mirror both free
             partner = np.asarray(self._mirror.partner)
             inside[partner[inside & (partner >= 0)]] = True
+        inside[inputs.frozen_tris] = False  # committed layers keep their values (their faces are held)
         region = np.flatnonzero(inside & np.asarray(nm.face_active, dtype=bool))
-        if len(region) > LIVE_MAX_REGION_FRACTION * T:
+        if not region.size or len(region) > LIVE_MAX_REGION_FRACTION * T:
             return None
         return region
 
@@ -131,13 +130,11 @@ class SessionLive:
             solver.set_alignment(inputs.alignment)  # the same V_UU: right-hand side only
             in_solver = self._live_in_solver
         else:
-            active = np.asarray(self._solve_native_mesh().face_active, dtype=bool)
-            free = np.zeros(self.mesh.num_triangles, dtype=bool)
-            free[region] = True
-            frozen = np.flatnonzero(active & ~free)
+            # Every face outside the region is held at the last solve's value; only those within the energy's
+            # stencil of the region enter the region's system (frozen_faces.hpp), so the set-up costs the region.
             solver = native().ExactSolver(ops, s["order"], s["strength"], inputs.alignment, inputs.kind,
-                                          progress=self.progress, frozen_faces=frozen,
-                                          frozen_values=rec.raw[frozen], **self._weight_arguments(inputs))
+                                          progress=self.progress, free_faces=region, held_field=rec.raw,
+                                          **self._weight_arguments(inputs))
             if self._mirror is not None:
                 solver.set_symmetry(self._mirror)
             in_solver = {"dir": {}, "vec": {}, "sing": {}}
@@ -155,11 +152,14 @@ class SessionLive:
         return w, float(solver.lambda_), list(solver.sign_fixed_faces)
 
 
-def _grow(native_mesh, faces: np.ndarray, rings: int) -> np.ndarray:
-    """faces and every face within `rings` dual steps of them (a walk over the dual graph, native)."""
+def _grow(native_mesh, faces: np.ndarray, rings: int, limit: int = -1) -> tuple[np.ndarray, np.ndarray]:
+    """(faces and every face within `rings` dual steps of them, sorted; the steps to each) (a walk over the dual
+    graph, native). With a limit the walk ends with the first complete step past `limit` faces (the steps within
+    the limit are all there, and the region's size is known to exceed it)."""
     from ._loader import native
 
-    return np.asarray(native().grow_faces(native_mesh, np.asarray(faces, dtype=np.int64), int(rings)))
+    grown, steps = native().grow_faces(native_mesh, np.asarray(faces, dtype=np.int64), int(rings), int(limit))
+    return np.asarray(grown), np.asarray(steps)
 
 
 def _restrict(inputs, inside: set, session) -> Any:

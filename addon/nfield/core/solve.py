@@ -274,10 +274,67 @@ def _result(mesh: Mesh, ops, w, *, n, order, align, strength, weights, lam, sign
     w = np.asarray(w, dtype=np.complex128)
     u, first_tri, energy, sv, si = native().field_summary(ops, w, order, details)
     first = np.ascontiguousarray(mesh.per_face(first_tri)) if mesh.has_polygons else first_tri  # one row per face
-    all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
     sings = [(int(v), float(i)) for v, i in zip(sv.tolist(), si.tolist())] if details else None
+    return _assemble_result(mesh, ops, w, u, first, sings, energy, n=n, order=order, align=align, strength=strength,
+                            weights=weights, lam=lam, sign_fixed=sign_fixed, t0=t0, mode=mode, basis_size=basis_size,
+                            guides=guides)
+
+
+@dataclass
+class ResultSummary:
+    """What a FieldResult derives from its raw solution, as private copies: the base a live result is updated
+    from (DesignSession keeps the one of its last exact solve; the result handed out may be changed by its user)."""
+
+    unit: np.ndarray
+    first: np.ndarray
+    energy: float
+    singularities: list[tuple[int, float]] | None
+
+    @classmethod
+    def of(cls, result: FieldResult) -> "ResultSummary":
+        sings = None if result.singularities is None else list(result.singularities)
+        return cls(result.representation.copy(), result.directions.copy(), result.energy, sings)
+
+
+def _live_result(previous: ResultSummary, mesh: Mesh, ops, w, triangles, *, n, order, align, strength, weights, lam,
+                 sign_fixed, t0, details: bool = True, guides: Any = None) -> FieldResult:
+    """The FieldResult of a live local solve (DesignSession.solve(live=True)), from the summary of the solve it
+    started from: w differs from that solve's raw solution only on `triangles` (the region), so only their unit
+    field and first directions are computed; the energy is the previous energy plus its change on the region
+    (energy_rows.hpp), and the singularities are searched again only at the region's vertices. The same result
+    as _result(w) (the arrays and the singularities exactly, the energy to rounding), at a cost proportional to
+    the region instead of the mesh (but for copying the per-face arrays). A previous solve without details (NaN
+    energy, no singularities) gives way to a full pass when details are asked for."""
+    w = np.asarray(w, dtype=np.complex128)
+    triangles = np.asarray(triangles, dtype=np.int64)
+    nat = native()
+    unit_there, first_there = nat.field_summary_faces(ops, w, triangles)
+    u = previous.unit.copy()
+    u[triangles] = unit_there
+    first = previous.first.copy()
+    faces = mesh.triangle_face[triangles]
+    stands_for = mesh.polygon_first_triangle[faces] == triangles  # the triangle whose direction its face shows
+    first[faces[stands_for]] = first_there[stands_for]
+    energy, sings = math.nan, None
+    if details and math.isfinite(previous.energy) and previous.singularities is not None:
+        energy = previous.energy + nat.energy_change(ops, order, previous.unit, u, triangles)
+        sv, si = nat.singularity_indices_near(ops, u, triangles)
+        near = set(sv.tolist())
+        sings = sorted([(v, i) for v, i in previous.singularities if v not in near]
+                       + [(int(v), float(i)) for v, i in zip(sv.tolist(), si.tolist())])
+    elif details:
+        _, _, energy, sv, si = nat.field_summary(ops, w, order, True)
+        sings = [(int(v), float(i)) for v, i in zip(sv.tolist(), si.tolist())]
+    return _assemble_result(mesh, ops, w, u, first, sings, energy, n=n, order=order, align=align, strength=strength,
+                            weights=weights, lam=lam, sign_fixed=sign_fixed, t0=t0, mode="exact", basis_size=None,
+                            guides=guides)
+
+
+def _assemble_result(mesh: Mesh, ops, w, u, first, sings, energy, *, n, order, align, strength, weights, lam,
+                     sign_fixed, t0, mode, basis_size, guides) -> FieldResult:
     tf = mesh.triangle_face
     fixed = sorted({int(tf[int(t)]) for t in sign_fixed})
+    all_faces = lambda: mesh.per_face(np.asarray(ops.representation_to_directions(u), dtype=np.float64))
     return FieldResult(
         n=n, order=order, align=align, strength=strength, weights=weights,
         representation=u, raw_solution=w,

@@ -4,6 +4,7 @@
 #pragma once
 #include <Eigen/Core>
 #include <algorithm>
+#include <limits>
 #include <vector>
 
 #include "nfield/closest_point.hpp"
@@ -17,9 +18,11 @@ class FaceWalker {
  public:
   explicit FaceWalker(const TriangleMesh& mesh) : mesh_(mesh), stamp_(mesh.num_faces(), 0) {}
 
-  /// visit(face, ring) for every face within `rings` dual steps of the seeds; the seeds are ring 1.
+  /// visit(face, ring) for every face within `rings` dual steps of the seeds; the seeds are ring 1. With `limit`,
+  /// the walk ends with the first ring that brings the count of visited faces past it (that ring complete).
   template <class Visit>
-  void rings(const std::vector<int>& seeds, int rings, Visit&& visit) {
+  void rings(const std::vector<int>& seeds, int rings, Visit&& visit,
+             std::size_t limit = std::numeric_limits<std::size_t>::max()) {
     next_stamp();
     queue_.clear();
     ring_.clear();
@@ -27,11 +30,11 @@ class FaceWalker {
       if (f >= 0 && mesh_.face_active(f) && mark(f)) queue_.push_back(f), ring_.push_back(1);
     for (std::size_t i = 0; i < queue_.size(); ++i) {
       const int f = queue_[i], r = ring_[i];
+      if (i > limit && r > ring_[i - 1]) break;  // the rings before are complete and already past the limit
       visit(f, r);
       if (r >= rings) continue;
-      for (int e : mesh_.face_dual_edges(f)) {
-        const DualEdge& d = mesh_.dual_edges()[e];
-        const int g = d.face0 == f ? d.face1 : d.face0;
+      for (int g : mesh_.face_neighbors(f)) {
+        if (g < 0) break;
         if (mark(g)) queue_.push_back(g), ring_.push_back(r + 1);
       }
     }
@@ -58,9 +61,8 @@ class FaceWalker {
         if (distance > radius) continue;
       }
       visit(f, distance);
-      for (int e : mesh_.face_dual_edges(f)) {
-        const DualEdge& d = mesh_.dual_edges()[e];
-        const int g = d.face0 == f ? d.face1 : d.face0;
+      for (int g : mesh_.face_neighbors(f)) {
+        if (g < 0) break;
         if (mark(g)) queue_.push_back(g);
       }
     }

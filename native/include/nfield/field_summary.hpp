@@ -30,4 +30,10 @@ struct FieldSummary {
 /// the energy and the singularities, which cost more than a live solve. `order` (1..4) is the energy's order.
 FieldSummary summarize_field(const FieldOperators& ops, const ComplexVector& raw, int order, bool details);
 
+/// The unit field and the first direction of `raw` (one value per face) on `faces` only, in that order (rows of
+/// `unit` and `first_direction`; no energy, no singularities): what a summary changes when only these faces'
+/// raw values changed (a live local solve). The same values, bit for bit, as summarize_field on those faces.
+/// InputError for a field of another size or a face out of range.
+FieldSummary summarize_faces(const FieldOperators& ops, const ComplexVector& raw, const std::vector<int>& faces);
+
 }  // namespace nfield

@@ -16,6 +16,12 @@
 
 namespace nfield {
 
+/// The unit representation vector (symmetry n) of the 3D vector v projected into face f's tangent plane:
+/// (t / |t|)^n with t the tangent part of v, or 0 where v is (nearly) normal to the face (|t| <= 1e-9 |v|).
+/// Powers by squaring instead of exp(i n arg t): no trigonometry per face and sample of a guide (the same value
+/// to a few ulp).
+Complex unit_representation(const TangentFrames& frames, int f, const Eigen::Vector3d& v, int n);
+
 /// One soft guide source, per face (size num_faces; zero on inactive faces and where the source is silent).
 struct GuideLayer {
   Eigen::VectorXcd value;  ///< weight * coherence * unit representation vector

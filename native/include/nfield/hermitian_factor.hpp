@@ -48,6 +48,8 @@ class HermitianFactor {
   static constexpr int kMaxRefinements = 4;
   /// solve() substitutes forward only on the supernodes b reaches when b has fewer than n / kSparseFraction entries.
   static constexpr int kSparseFraction = 16;
+  /// Systems with fewer unknowns are factored with single-threaded BLAS (see the constructor).
+  static constexpr int kThreadedFactorizationSize = 20000;
 
   /// Analyzes and factors `matrix` (both triangles stored; the lower one is read). `what` names the system
   /// in messages ("the factorization of the order-2 system (69451 faces)"), `advice` says what needs less

@@ -80,6 +80,9 @@ class TriangleMesh {
   const std::vector<DualEdge>& dual_edges() const { return dual_edges_; }
   /// Indices into dual_edges() of the (up to 3) dual edges at face f.
   const std::vector<int>& face_dual_edges(int f) const { return face_dual_edges_[f]; }
+  /// The faces across those dual edges, in the same order, -1 after the last: one contiguous array that walks
+  /// over the dual graph read instead of the edge lists (no pointer chase per face).
+  const std::array<int, 3>& face_neighbors(int f) const { return face_neighbors_[f]; }
   /// Connected component (0..num_components-1) of each active face through dual edges; -1 for inactive.
   const std::vector<int>& face_component() const { return face_component_; }
 
@@ -111,6 +114,7 @@ class TriangleMesh {
   double total_area_ = 0, bbox_diagonal_ = 0;
   std::vector<DualEdge> dual_edges_;
   std::vector<std::vector<int>> face_dual_edges_;
+  std::vector<std::array<int, 3>> face_neighbors_;
   std::vector<int> face_component_;
   std::vector<std::vector<int>> vertex_ring_faces_, vertex_ring_dual_edges_, vertex_faces_;
   std::vector<double> angle_defect_;

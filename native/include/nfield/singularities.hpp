@@ -28,6 +28,12 @@ struct VertexIndex {
 /// skipped (their index is undefined). `field` is per face.
 std::vector<VertexIndex> singularity_indices(const FieldOperators& ops, const ComplexVector& field);
 
+/// singularity_indices at the vertices of `faces` only (the vertices whose rings contain one of them), in vertex
+/// order: where the indices can have changed when only these faces' values changed (a live local solve), at a
+/// cost proportional to them. InputError for a field of another size or a face out of range.
+std::vector<VertexIndex> singularity_indices_near(const FieldOperators& ops, const ComplexVector& field,
+                                                  const std::vector<int>& faces);
+
 /// Index numerator of `field` (per face) at interior vertex v; false if a ring value is zero or not finite
 /// (the index is undefined there). The same rule as singularity_indices.
 bool ring_index_numerator(const FieldOperators& ops, const ComplexVector& field, int vertex, int& numerator);

@@ -58,9 +58,11 @@
 // definite on every mesh. Strength is limited to [1e-6, 1e6]: below, V is so close to singular on flat meshes
 // that the direction constraints lose accuracy.
 //
-// Frozen faces (local editing, committed layers; paper section 9): only faces within the energy's stencil
-// (order m: dual m-ring) of the unknowns matter, and the output copies every frozen value bit-identically.
-// With m >= 2 the free field joins the frozen one with a continuous derivative.
+// Frozen faces (local editing, committed layers, live guide edits; paper section 9, frozen_faces.hpp): only faces
+// within the energy's stencil (order m: dual m-ring) of the unknowns enter the system, and the output copies every
+// frozen value bit-identically. With m >= 2 the free field joins the frozen one with a continuous derivative. A
+// local solve of a small region in a large mesh costs the region: its rows of E_m (energy_rows.hpp), its
+// factorization, and a few passes over per-face flags and values.
 //
 // Accuracy. Every solve is backward stable and, where V_UU is ill-conditioned, refined with residuals in extended
 // precision (hermitian_factor.hpp), so the result satisfies the first-order conditions of its problem to
@@ -99,6 +101,7 @@
 
 #include "nfield/constraint_system.hpp"
 #include "nfield/constraints.hpp"
+#include "nfield/frozen_faces.hpp"
 #include "nfield/hermitian_factor.hpp"
 #include "nfield/mirror.hpp"
 #include "nfield/operators.hpp"
@@ -126,15 +129,15 @@ class ExactSolver : public ConstraintEditor {
   /// `lambda_override` (if finite) replaces the strength mapping (expert use, tests); it must keep V
   /// positive definite, otherwise SolverError. Without it: lambda = 0 for an n-vector spline without
   /// alignment, strength_to_lambda otherwise.
-  /// `frozen`: (face, value) pairs held fixed; ConstraintError for inactive/out-of-range faces.
+  /// `frozen`: the faces held fixed at their values (frozen_faces.hpp: listed, or the complement of a region).
   /// `anchors`: faces whose n-vector constraints are eliminated (see above); ConstraintError for inactive,
   /// out-of-range, frozen or repeated faces. `cache_columns` = false: a one-shot solver (direct solves).
   /// `alignment_weight`: W per face (>= 0, finite; empty: 1 everywhere), see "Guides" above.
-  ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength, const ComplexVector& alignment,
+  ExactSolver(std::shared_ptr<const FieldOperators> ops, int order, double strength, ComplexVector alignment,
               SplineKind kind, double lambda_override = std::numeric_limits<double>::quiet_NaN(),
-              const ProgressCallback& progress = {}, const std::vector<std::pair<int, Complex>>& frozen = {},
+              const ProgressCallback& progress = {}, FrozenFaces frozen = {},
               const std::vector<int>& anchors = {}, bool cache_columns = true,
-              const Eigen::VectorXd& alignment_weight = Eigen::VectorXd());
+              Eigen::VectorXd alignment_weight = Eigen::VectorXd());
 
   const FieldOperators& operators() const { return *ops_; }
   int order() const { return order_; }
@@ -162,7 +165,7 @@ class ExactSolver : public ConstraintEditor {
   size_t num_cached_columns() const { return columns_.size(); }
   /// Number of unknowns of the factored system (active faces that are neither frozen nor anchors).
   int num_unknowns() const { return system_.num_unknowns(); }
-  bool face_frozen(int face) const { return frozen_index_.count(face) > 0; }
+  bool face_frozen(int face) const { return frozen_.held(face); }
   const std::vector<int>& anchor_faces() const { return anchors_; }
   /// Lower bound of the condition number of the factored V_UU (hermitian_factor.hpp); 1 without unknowns.
   double condition_estimate() const { return factor_ ? factor_->condition_estimate() : 1.0; }
@@ -172,7 +175,7 @@ class ExactSolver : public ConstraintEditor {
   bool needs_refactorization(const std::vector<int>& vector_faces) const;
 
  private:
-  bool face_fixed(int face) const override { return frozen_index_.count(face) > 0; }
+  bool face_fixed(int face) const override { return frozen_.held(face); }
   void factor(const ProgressCallback& progress);
   /// alignment_, the safeguard's s_0, the components with data, b0_ and (live) its response, from
   /// alignment_per_face_ and the current system.
@@ -233,8 +236,7 @@ class ExactSolver : public ConstraintEditor {
   SplineKind kind_;
   double lambda_;
   bool cache_columns_;
-  std::vector<std::pair<int, Complex>> frozen_;
-  std::unordered_map<int, size_t> frozen_index_;
+  FrozenFaces frozen_;
   std::vector<int> anchors_;
   ComplexVector alignment_per_face_;  ///< as given (empty for none)
   Eigen::VectorXd weight_per_face_;   ///< alignment weights W as given (empty: 1)

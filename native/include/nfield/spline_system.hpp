@@ -29,6 +29,7 @@
 #pragma once
 #include <vector>
 
+#include "nfield/frozen_faces.hpp"
 #include "nfield/operators.hpp"
 
 namespace nfield {
@@ -43,7 +44,10 @@ struct SplineSystem {
 
   std::vector<int> unknown_of_face;  ///< per mesh face: unknown index, -1 for inactive and fixed faces
   std::vector<int> face_of_unknown;
-  std::vector<int> fixed_faces;      ///< the fixed faces, as given
+  /// The fixed faces the system refers to: the anchors (as given), then the frozen faces within the stencil of
+  /// the unknowns (the columns of V_UF). A frozen face farther away does not enter the system at all, so a
+  /// local solve costs its region, not the faces it holds.
+  std::vector<int> fixed_faces;
   std::vector<int> fixed_of_face;    ///< per mesh face: index into fixed_faces, -1 otherwise
   std::vector<bool> shifted_component;  ///< per mesh component: V carries the shift there
   Eigen::VectorXd mass;              ///< A_f per unknown (length^2)
@@ -51,16 +55,15 @@ struct SplineSystem {
   ComplexSparse coupling;            ///< V_UF = (E_m)_UF, |U| x |F| (columns in the order of fixed_faces)
 
   int num_unknowns() const { return static_cast<int>(face_of_unknown.size()); }
-  bool fixed(int face) const { return fixed_of_face[face] >= 0; }
 };
 
-/// Builds the system of order m (1..4) for V = E_m - lambda M_W with the given fixed faces (active, distinct;
-/// checked by the caller) and alignment weights W per face (empty: 1 everywhere; >= 0, checked by the caller).
-/// Components without a fixed face are shifted when lambda == 0 (see above). No unknown left (every face
-/// fixed) gives an empty system. When most faces are fixed (a local solve) only the rows of E_m of the unknowns
-/// are formed (energy_rows.hpp), at a cost proportional to them.
-SplineSystem assemble_spline_system(const FieldOperators& ops, int order, double lambda,
-                                    const std::vector<int>& fixed_faces,
+/// Builds the system of order m (1..4) for V = E_m - lambda M_W with the given frozen faces and anchors (active,
+/// distinct, not frozen; checked by the caller) and alignment weights W per face (empty: 1 everywhere; >= 0,
+/// checked by the caller). Components without a fixed face are shifted when lambda == 0 (see above). No unknown
+/// left (every face fixed) gives an empty system. When most faces are fixed (a local solve) only the rows of E_m
+/// of the unknowns are formed (energy_rows.hpp), at a cost proportional to them.
+SplineSystem assemble_spline_system(const FieldOperators& ops, int order, double lambda, const FrozenFaces& frozen,
+                                    const std::vector<int>& anchors,
                                     const Eigen::VectorXd& weight = Eigen::VectorXd());
 
 }  // namespace nfield
