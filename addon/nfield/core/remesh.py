@@ -296,6 +296,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     """
     t0 = time.perf_counter()
     mesh = _check_mesh(mesh)
+    if pure_quad_method not in ("pair", "subdivide"):
+        raise ValueError(f"pure_quad_method must be 'pair' or 'subdivide', got {pure_quad_method!r}")
     directions, n = field_directions(mesh, field, n)
     if (target_faces is None) == (edge_length is None):
         raise ValueError("give exactly one of target_faces (number of output faces) or edge_length (mesh units)")
@@ -317,8 +319,6 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}") from None
     if not 0.0 <= feature_field_angle <= 45.0:
         raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}")
-    if pure_quad_method not in ("pair", "subdivide"):
-        raise ValueError(f"pure_quad_method must be 'pair' or 'subdivide', got {pure_quad_method!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**64:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
