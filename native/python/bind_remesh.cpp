@@ -85,7 +85,8 @@ QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
       {"subdivide_for_pure_quads", &O::subdivide_for_pure_quads}, {"keep_boundary", &O::keep_boundary},
       {"sharp_angle", &O::sharp_angle_degrees}, {"feature_field_angle", &O::feature_field_angle_degrees},
       {"seed", &O::seed}, {"iterations", &O::iterations}, {"max_face_size", &O::max_face_size},
-      {"relax_iterations", &O::relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
+      {"relax_iterations", &O::relax_iterations},
+      {"field_relax_iterations", &O::field_relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
       {"cancel_position_singularities", &O::cancel_position_singularities}};
   O o;
   for (const auto& [key, value] : kwargs) {

@@ -260,9 +260,9 @@ def _positive(value: Any, name: str) -> float:
 
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, pure_quad_method: str = "pair",
-                keep_boundary: bool = True,
-                sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0, seed: int = 0, iterations: int = 10,
-                relax_iterations: int = 2, strict: bool = False, cancel_position_singularities: bool = True,
+                keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
+                seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
+                strict: bool = False, cancel_position_singularities: bool = True,
                 progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
@@ -282,6 +282,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     seed : the random lattice origins; the same seed gives the same mesh.
     iterations : Gauss-Seidel sweeps of the position field per hierarchy level.
     relax_iterations : smoothing steps (towards face centroids, then back onto the surface) after extraction.
+    field_relax_iterations : steps moving each vertex so that its edges run along the field (then back onto
+        the surface), before the last untangling step; 0 skips them.
     strict : True refuses (ValueError) a mesh with a component too small for the edge length; False
         leaves such components out and lists them in ``stats["messages"]``.
     cancel_position_singularities : pair the lattice's row ends (dislocations) with each other, with the
@@ -323,6 +325,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
         raise ValueError(f"relax_iterations must be an integer in 0..100, got {relax_iterations!r}")
+    if isinstance(field_relax_iterations, bool) or not isinstance(field_relax_iterations, (int, np.integer)) \
+            or not 0 <= int(field_relax_iterations) <= 100:
+        raise ValueError(f"field_relax_iterations must be an integer in 0..100, got {field_relax_iterations!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
@@ -331,6 +336,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                              keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle,
                              feature_field_angle=feature_field_angle, seed=int(seed),
                              iterations=int(iterations), relax_iterations=int(relax_iterations),
+                             field_relax_iterations=int(field_relax_iterations),
                              refuse_small_components=bool(strict),
                              cancel_position_singularities=bool(cancel_position_singularities), progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)

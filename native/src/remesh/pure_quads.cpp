@@ -17,6 +17,9 @@ namespace {
 /// Below this worst corner (scaled Jacobian) a split along a diagonal leaves a nearly flat or folded
 /// corner (a midpoint between two straight halves of an edge scores 0); a centre vertex is then tried.
 constexpr double kFlatCorner = 0.15;
+/// A path end whose fixed corners (old vertices, feature midpoints) score at most this is taken only when
+/// every choice does.
+constexpr double kFlatEnd = 0.02;
 /// Extra path costs, in face steps: a turn inside a quad adds a centre vertex of valence 3 and raises a
 /// corner to valence 5; a midpoint on a feature edge is a T-junction on the feature curve.
 constexpr double kTurnCost = 3, kFeatureCost = 2, kNonQuadCost = 1;
@@ -286,7 +289,7 @@ PureQuadReport convert_to_pure_quads(PolygonMesh& mesh, std::vector<char>& kind,
     };
     // Each end either merged or given a midpoint: the choice adding the fewest irregular vertices (the
     // sum of |faces around - regular| over the vertices touched: 4 inside, 2 on the boundary), among those
-    // without a corner folded past flat, wins; then the best worst corner.
+    // whose fixed corners are not flat or folded, wins; then the best worst corner.
     struct Option {
       std::vector<Vec3> positions;
       std::vector<char> kind;
@@ -321,13 +324,19 @@ PureQuadReport convert_to_pure_quads(PolygonMesh& mesh, std::vector<char>& kind,
           o.cost += std::abs(d - 4);
         }
       }
-      o.worst = worst_corner(o.positions, o.quads);
+      // Corners at new midpoints off the features may be flat (a triangle's end given a midpoint): the
+      // relaxation moves them out. Elsewhere (old vertices, midpoints that must stay on a feature edge) a
+      // flat corner would stay flat or flipped.
+      std::vector<char> movable(o.positions.size(), 0);
+      for (size_t v = V0; v < o.positions.size(); ++v) movable[v] = o.kind[v] == kNoFeature;
+      o.worst = 1;
+      for (const auto& q : o.quads) o.worst = std::min(o.worst, polygon_min_jacobian(o.positions, q, movable));
       o.valid = true;
       return o;
     };
     auto better = [](const Option& a, const Option& b) {
       if (a.valid != b.valid) return a.valid;
-      const bool fa = a.worst > -0.05, fb = b.worst > -0.05;
+      const bool fa = a.worst > kFlatEnd, fb = b.worst > kFlatEnd;
       if (fa != fb) return fa;
       if (a.cost != b.cost) return a.cost < b.cost;
       return a.worst > b.worst;

@@ -338,6 +338,10 @@ int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int ma
 }
 
 double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly) {
+  return polygon_min_jacobian(P, poly, std::vector<char>());
+}
+
+double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly, const std::vector<char>& skip) {
   const int k = static_cast<int>(poly.size());
   Vec3 n = Vec3::Zero();
   for (int i = 0; i < k; ++i) n += P[poly[i]].cross(P[poly[(i + 1) % k]]);
@@ -345,6 +349,7 @@ double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& 
   n.normalize();
   double worst = 1;
   for (int i = 0; i < k; ++i) {
+    if (poly[i] < static_cast<int>(skip.size()) && skip[poly[i]]) continue;
     const Vec3 e1 = P[poly[(i + 1) % k]] - P[poly[i]], e2 = P[poly[(i + k - 1) % k]] - P[poly[i]];
     const double l = e1.norm() * e2.norm();
     worst = std::min(worst, l > 0 ? e1.cross(e2).dot(n) / l : -1.0);

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "nfield/errors.hpp"
+#include "nfield/remesh/field_relaxation.hpp"
 #include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
@@ -138,6 +139,8 @@ void check_options(const QuadRemeshOptions& o) {
     throw ParameterError("quad remesh: sharp_angle must be below 180 degrees (<= 0 disables sharp edges)");
   if (o.iterations < 1 || o.iterations > 1000) throw ParameterError("quad remesh: iterations must be in 1..1000");
   if (o.relax_iterations < 0 || o.relax_iterations > 100) throw ParameterError("quad remesh: relax_iterations must be in 0..100");
+  if (o.field_relax_iterations < 0 || o.field_relax_iterations > 100)
+    throw ParameterError("quad remesh: field_relax_iterations must be in 0..100");
   if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
   if (!(o.feature_field_angle_degrees >= 0 && o.feature_field_angle_degrees <= 45))
     throw ParameterError("quad remesh: feature_field_angle must be in 0..45 degrees");
@@ -381,6 +384,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.vertex_feature_kind = std::move(fkind);
     relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   }
+  relax_along_field(result.mesh, result.vertex_feature_kind, targets, directions, options.field_relax_iterations);
   // 8. Guarded last step: vertices of flipped faces moved until none is left (quad_untangle.hpp); faces that
   //    stay flipped split along a diagonal. For pure quads this runs on the quad-dominant mesh before the
   //    subdivision too (a split face still becomes quads there), and after it without splits.

@@ -75,5 +75,8 @@ void relax_vertices(PolygonMesh& mesh, const std::vector<char>& feature_kind, co
 /// Minimum over the corners of the polygon (given by its vertex list) of (e1 x e2) . N / (|e1||e2|), with N
 /// its Newell normal; 1 for a rectangle, <= 0 when folded.
 double polygon_min_jacobian(const std::vector<Vec3>& positions, const std::vector<int>& polygon);
+/// The same over the corners at vertices v without skip[v] (indices beyond `skip` count).
+double polygon_min_jacobian(const std::vector<Vec3>& positions, const std::vector<int>& polygon,
+                            const std::vector<char>& skip);
 
 }  // namespace nfield::remesh
