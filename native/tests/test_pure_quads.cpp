@@ -136,17 +136,23 @@ int main() {
     return m;
   };
 
-  run("two pentagons sharing a split edge are paired without a polygon that revisits a vertex", [&] {
-    // Merging them across one half of the split edge would give a loop through the other half's ends twice.
+  run("a split edge (two pentagons with a straight corner) becomes a half-width column, all regular", [&] {
+    // Each pentagon is a quad with a T-junction: its half row goes on from the straight corner, straight
+    // to the boundary (4 steps), rather than into the other pentagon across a half of the split edge (whose
+    // hexagons would need centre vertices; merging them would give a loop through a vertex twice).
     std::vector<char> kind;
     PolygonMesh m = grid_with_split_edge(3, 4, 4, 4, kind, kNoFeature);
     const long long chi = euler(m);
     const PureQuadReport r = convert_to_pure_quads(m, kind, targets);
     CHECK_EQ(r.odd_faces, 2);
-    CHECK_EQ(r.paths, 1);
-    CHECK_EQ(r.boundary_paths, 0);
-    CHECK_EQ(r.merged_ends, 0);
+    CHECK_EQ(r.paths, 2);
+    CHECK_EQ(r.boundary_paths, 2);
+    CHECK_EQ(r.centres, 0);
     check_all_quads_valid(m, chi);
+    for (int v : interior_valence(m)) CHECK(v == -1 || v == 4);
+    // the column x in [3, 4] is split at x = 3.5 from the bottom to the top boundary: one midpoint per
+    // horizontal edge of the column besides the split edge's own vertex (9 edges, y = 0..8, less y = 4)
+    CHECK_EQ(r.midpoints, 8);
   });
 
   run("a pentagon on the boundary is joined to the boundary", [&] {
@@ -158,21 +164,23 @@ int main() {
     CHECK_EQ(r.paths, 1);
     CHECK_EQ(r.boundary_paths, 1);
     check_all_quads_valid(m, chi);
-    // The pentagon is a cell with a flat corner on the straight boundary; a second midpoint there leaves
-    // a flat corner in every split of the hexagon (the two midpoints and a cell corner are collinear), so
-    // one new edge ends at an interior corner of the cell: one interior vertex of valence 5, the only
-    // irregular one.
+    // The pentagon is a cell with a straight corner on the boundary: its half row goes on from that corner
+    // (a midpoint on the boundary itself would leave it a flat corner) and out to the nearest boundary,
+    // here 1 step up, a turn (3) and 3 steps to the left boundary, as cheap as 7 steps straight up. A turn
+    // costs a centre vertex of valence 3 and a cell corner of valence 5; nothing else is irregular.
     int irregular = 0;
     for (int v : interior_valence(m)) irregular += v != -1 && v != 4;
-    CHECK_EQ(irregular, 1);
-    // the new midpoint lies on the boundary, a feature curve: it is a curve vertex
+    CHECK_LE(irregular, 2);
+    CHECK_LE(r.centres, 1);
+    // the new midpoint on the boundary, a feature curve, is a curve vertex; the others are free
     CHECK_EQ(static_cast<long long>(kind.size()), m.num_vertices());
     int on_boundary = 0;
-    for (int v = (kN + 1) * (kN + 1) + 1; v < m.num_vertices(); ++v)
-      if (m.positions[v].y() == 0) {
-        ++on_boundary;
-        CHECK(kind[v] == kCurve);
-      }
+    for (int v = (kN + 1) * (kN + 1) + 1; v < m.num_vertices(); ++v) {
+      const Vec3& p = m.positions[v];
+      const bool boundary = p.x() == 0 || p.y() == 0 || p.x() == kN || p.y() == kN;
+      on_boundary += boundary;
+      CHECK(kind[v] == (boundary ? kCurve : kNoFeature));
+    }
     CHECK_EQ(on_boundary, 1);
   });
 

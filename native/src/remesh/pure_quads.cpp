@@ -22,7 +22,10 @@ constexpr double kFlatCorner = 0.15;
 constexpr double kFlatEnd = 0.02;
 /// Extra path costs, in face steps: a turn inside a quad adds a centre vertex of valence 3 and raises a
 /// corner to valence 5; a midpoint on a feature edge is a T-junction on the feature curve.
-constexpr double kTurnCost = 3, kFeatureCost = 2, kNonQuadCost = 1;
+constexpr double kTurnCost = 3, kFeatureCost = 2, kFeatureEndCost = 20, kNonQuadCost = 1;
+/// A pentagon left or entered where its split needs a centre vertex: two irregular vertices, as a turn,
+/// and no clean alternative nearby (so twice a turn: a straight half row several faces longer is better).
+constexpr double kUncleanEndCost = 6;
 
 inline long long directed_key(int a, int b) { return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b); }
 
@@ -66,6 +69,22 @@ std::vector<std::vector<int>> shed_quads(const std::vector<Vec3>& P, std::vector
   }
   out.push_back(p);
   return out;
+}
+
+/// Whether a pentagon given a midpoint on its side j splits along a diagonal into two quads without a flat
+/// corner (a pentagon with a straight corner, a quad with a T-junction, does so only from the side opposite
+/// that corner).
+bool pentagon_splits_cleanly(const std::vector<Vec3>& positions, const std::vector<int>& face, int j) {
+  std::vector<Vec3> P;
+  for (size_t t = 0; t < face.size(); ++t) {
+    P.push_back(positions[face[t]]);
+    if (static_cast<int>(t) == j) P.push_back(0.5 * (positions[face[t]] + positions[face[(t + 1) % face.size()]]));
+  }
+  for (int i = 0; i < 3; ++i) {
+    const std::vector<std::vector<int>> q = {{i, i + 1, i + 2, i + 3}, {i + 3, (i + 4) % 6, (i + 5) % 6, i}};
+    if (worst_corner(P, q) >= kFlatCorner) return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -196,8 +215,16 @@ PureQuadReport convert_to_pure_quads(PolygonMesh& mesh, std::vector<char>& kind,
           double step = 1;
           if (f != from && k == 4 && j != (entry[f] + 2) % 4) step += kTurnCost;
           if (f != from && k != 4) step += kNonQuadCost;
-          if (is_feature(a, b)) step += kFeatureCost;
           auto it = side_of.find(directed_key(b, a));
+          // A feature edge is crossed at a cost; as the first or last step of a path it cannot be merged
+          // across, and its midpoint, held on the feature, would leave a flat corner in the odd face.
+          const bool at_end = f == from || (it != side_of.end() && odd(it->second.first));
+          if (is_feature(a, b)) step += at_end ? kFeatureEndCost : kFeatureCost;
+          // Leaving or entering a pentagon by a side whose midpoint leaves it no clean split costs extra.
+          if (f == from && k == 5 && !pentagon_splits_cleanly(mesh.positions, faces[f], j)) step += kUncleanEndCost;
+          if (it != side_of.end() && odd(it->second.first) && faces[it->second.first].size() == 5 &&
+              !pentagon_splits_cleanly(mesh.positions, faces[it->second.first], it->second.second))
+            step += kUncleanEndCost;
           if (it == side_of.end()) {
             if (d + step < boundary_cost) boundary_cost = d + step, boundary_face = f, boundary_side = j;
             continue;

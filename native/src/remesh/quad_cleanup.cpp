@@ -465,9 +465,11 @@ int split_large_faces(PolygonMesh& mesh, std::vector<char>& kind, const Projecti
   return split;
 }
 
-void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations) {
+void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations,
+                    const std::vector<char>* movable) {
   const int V = mesh.num_vertices();
   for (int it = 0; it < iterations; ++it) {
+    const std::vector<Vec3> before = movable ? mesh.positions : std::vector<Vec3>();
     std::vector<Vec3> sum(V, Vec3::Zero()), normal(V, Vec3::Zero());
     std::vector<int> count(V, 0);
     for (int f = 0; f < mesh.num_faces(); ++f) {
@@ -480,7 +482,7 @@ void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Proj
       }
     }
     for (int v = 0; v < V; ++v) {
-      if (count[v] == 0 || kind[v] == kCorner) continue;
+      if (count[v] == 0 || kind[v] == kCorner || (movable && !(*movable)[v])) continue;
       // Tangential: the move keeps no part along the vertex's normal, so the vertex stays near the surface
       // and its projection near where it was (on a fingertip the centroids lie inside the part, and their
       // nearest surface point would be the tip for every vertex around it).
@@ -489,6 +491,9 @@ void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Proj
       mesh.positions[v] += d;
     }
     project_vertices(mesh, kind, targets);
+    if (movable)
+      for (int v = 0; v < V; ++v)
+        if (!(*movable)[v]) mesh.positions[v] = before[v];
   }
 }
 

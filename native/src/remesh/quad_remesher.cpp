@@ -348,7 +348,16 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
       const PureQuadReport r = convert_to_pure_quads(result.mesh, result.vertex_feature_kind, targets);
       accumulate(result.pure_quads, r);
       project_new_vertices(result.mesh, result.vertex_feature_kind, targets, old_vertices);
-      relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
+      // Only the faces the conversion made are relaxed (their flat corners at midpoints open up); the rest
+      // was relaxed already, and more steps would slide curve vertices further along their features.
+      std::vector<char> movable(result.mesh.num_vertices(), 0);
+      for (int f = 0; f < result.mesh.num_faces(); ++f) {
+        const int* fv = result.mesh.face(f);
+        const int k = result.mesh.face_size(f);
+        if (std::none_of(fv, fv + k, [&](int v) { return v >= old_vertices; })) continue;
+        for (int i = 0; i < k; ++i) movable[fv[i]] = 1;
+      }
+      relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations, &movable);
       if (round == 2) break;
       const std::vector<double> jac = scaled_jacobians_on(result.mesh, targets);
       if (std::none_of(jac.begin(), jac.end(), [](double q) { return q <= 0; })) break;

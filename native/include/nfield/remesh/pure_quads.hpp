@@ -4,11 +4,16 @@
 // all faces add up to twice the edges, so on a closed piece there is an even number of them. Each odd face
 // is joined to the nearest other odd face (or to the boundary) by a path of faces, found by Dijkstra's
 // algorithm on the dual graph: a step costs 1, turning inside a quad (entering and leaving it by adjacent
-// sides) 3 more, crossing a feature edge 2 more. Along the path:
+// sides) 3 more, crossing a feature edge 2 more (20 out of or into the odd face: see below), leaving or
+// entering a pentagon by a side whose midpoint leaves it no split without a flat corner 6 more (a pentagon
+// with a straight corner is a quad with a T-junction: its half row goes on from that corner), and the
+// cheapest path of all is made first. Along the path:
 //
 //  - every crossed edge gets a vertex at its midpoint (on a feature edge, a curve vertex), except the first
 //    and the last one: there the odd face is merged with its neighbour on the path (unless that edge is a
-//    feature or the union would revisit a vertex; then it gets a midpoint too);
+//    feature or the union would revisit a vertex; then it gets a midpoint too, a flat corner the
+//    relaxation opens unless it must stay on the feature; the choice at each end is the one adding the
+//    fewest irregular vertices among those without such a corner);
 //  - a path ending at the boundary puts a midpoint on the boundary edge (a regular boundary vertex);
 //  - each face along the path then has an even number of sides and is split into quads: a quad crossed
 //    straight through becomes two quads (a new edge between the midpoints, parallel to its sides: the half
