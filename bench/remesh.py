@@ -2,7 +2,8 @@
 QuadriFlow (`bpy.ops.object.quadriflow_remesh`, headless PyPI bpy) and Instant Meshes (`pyinstantmeshes`
 from PyPI, BSD; benchmark-only, see docs/benchmarks.md), at the same target (about 5,000 quads).
 
-Every method gets the same mesh; ours also gets the designed field (curvature-aligned biharmonic cross field
+Ours runs in three modes: quad-dominant, pure quads (the odd faces paired by half rows, at the target edge
+length) and pure quads by subdividing a lattice twice as coarse. Every method gets the same mesh; ours also gets the designed field (curvature-aligned biharmonic cross field
 with three hard direction constraints along the principal direction at seeded random faces). All outputs
 are measured by the same functions (nfield.core.quad_mesh_stats) against the same field and input: time,
 quad fraction, irregular vertices (against the field's singularity count), edge alignment to the designed
@@ -30,7 +31,7 @@ import common  # noqa: E402
 
 MESHES = ("fertility.off", "fandisk.obj", "rocker-arm.obj", "stanford-bunny.obj", "armadillo.obj")
 QUICK_MESHES = ("fandisk.obj", "rocker-arm.obj")
-METHODS = ("ours", "ours_pure", "quadriflow", "instant_meshes")
+METHODS = ("ours", "ours_pure", "ours_pure_subdivided", "quadriflow", "instant_meshes")
 RENDERS = {"rocker-arm.obj": ("remesh_rocker_arm.png", (1.0, 0.35, 0.25), False),
            "stanford-bunny.obj": ("remesh_bunny.png", (0.25, -1.0, 0.3), True)}
 
@@ -66,11 +67,11 @@ def designed_field(mesh, seed: int = 0):
     return solve(mesh, n=4, order=2, align="curvature-max", constraints=cons)
 
 
-def run_ours(mesh, field, faces: int, pure: bool):
+def run_ours(mesh, field, faces: int, pure: bool, method: str = "pair"):
     from nfield.core import quad_remesh
 
     t0 = time.perf_counter()
-    V, F, stats = quad_remesh(mesh, field, target_faces=faces, pure_quads=pure, stats=False)
+    V, F, stats = quad_remesh(mesh, field, target_faces=faces, pure_quads=pure, pure_quad_method=method, stats=False)
     return V, F, time.perf_counter() - t0, stats
 
 
@@ -135,6 +136,7 @@ def measure_mesh(name: str, faces: int, render: bool) -> dict:
     runners = {
         "ours": lambda: run_ours(mesh, field, faces, False),
         "ours_pure": lambda: run_ours(mesh, field, faces, True),
+        "ours_pure_subdivided": lambda: run_ours(mesh, field, faces, True, "subdivide"),
         "quadriflow": lambda: run_quadriflow(mesh, faces),
         "instant_meshes": lambda: run_instant_meshes(mesh, faces),
     }
@@ -172,7 +174,8 @@ def fmt(x, spec=".2f", scale=1.0):
 
 
 def markdown(rows: list[dict], faces: int) -> str:
-    names = {"ours": "ours (quad-dominant)", "ours_pure": "ours (pure quads)", "quadriflow": "QuadriFlow",
+    names = {"ours": "ours (quad-dominant)", "ours_pure": "ours (pure quads)",
+             "ours_pure_subdivided": "ours (pure, subdivided)", "quadriflow": "QuadriFlow",
              "instant_meshes": "Instant Meshes"}
     lines = [f"Target: about {faces} faces. Irregular: interior valence != 4 plus boundary vertices off their "
              "expected valence; alignment: angle of each edge to the nearest direction of the designed field "

@@ -234,7 +234,11 @@ def build_parser() -> argparse.ArgumentParser:
     size = r.add_mutually_exclusive_group(required=True)
     size.add_argument("--faces", type=_int_at_least(1, "faces"), help="target number of output faces")
     size.add_argument("--edge-length", type=_strength_free_positive, help="target edge length (mesh units)")
-    r.add_argument("--pure-quads", action="store_true", help="quads only (one subdivision step)")
+    r.add_argument("--pure-quads", action="store_true",
+                   help="quads only (the odd faces paired by half rows of quads at the target edge length)")
+    r.add_argument("--pure-quad-method", choices=("pair", "subdivide"), default="pair",
+                   help="with --pure-quads: pair (default) or subdivide (one subdivision step of a lattice twice "
+                        "as coarse: fewer irregular vertices, further from the input)")
     r.add_argument("--sharp-angle", type=float, default=40.0,
                    help="keep edges with a dihedral angle above this many degrees (default 40; 0: none)")
     r.add_argument("--no-boundary", action="store_true", help="do not keep boundaries as feature curves")
@@ -482,7 +486,8 @@ def cmd_remesh(args) -> int:
         field = solve(mesh, n=4, order=2, align=args.align, constraints=dirs, singularities=sings)
         n = None
     V, faces, stats = quad_remesh(mesh, field, n=n, target_faces=args.faces, edge_length=args.edge_length,
-                                  pure_quads=args.pure_quads, keep_boundary=not args.no_boundary,
+                                  pure_quads=args.pure_quads, pure_quad_method=args.pure_quad_method,
+                                  keep_boundary=not args.no_boundary,
                                   sharp_angle=args.sharp_angle, seed=args.seed, strict=args.strict)
     try:
         write_polygon_obj(args.out, V, faces)

@@ -81,10 +81,12 @@ QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
   using O = QuadRemeshOptions;
   using Member = std::variant<double O::*, bool O::*, int O::*, std::uint64_t O::*>;
   static const std::map<std::string, Member> members = {
-      {"edge_length", &O::edge_length}, {"pure_quads", &O::pure_quads}, {"keep_boundary", &O::keep_boundary},
+      {"edge_length", &O::edge_length}, {"pure_quads", &O::pure_quads},
+      {"subdivide_for_pure_quads", &O::subdivide_for_pure_quads}, {"keep_boundary", &O::keep_boundary},
       {"sharp_angle", &O::sharp_angle_degrees}, {"feature_field_angle", &O::feature_field_angle_degrees},
       {"seed", &O::seed}, {"iterations", &O::iterations}, {"max_face_size", &O::max_face_size},
-      {"relax_iterations", &O::relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
+      {"relax_iterations", &O::relax_iterations},
+      {"field_relax_iterations", &O::field_relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
       {"cancel_position_singularities", &O::cancel_position_singularities}};
   O o;
   for (const auto& [key, value] : kwargs) {
@@ -138,12 +140,16 @@ void bind_remesh(py::module_& m) {
                           u.moved_vertices, "released_features", u.released_features, "rounds", u.rounds,
                           "split_faces", u.split_faces, "removed_doublets", u.removed_doublets,
                           "collapsed_edges", u.collapsed_edges, "dropped_scraps", u.dropped_scraps);
+    const PureQuadReport& pq = r.pure_quads;
+    d["pure_quads"] = named("odd_faces", pq.odd_faces, "paths", pq.paths, "boundary_paths", pq.boundary_paths,
+                            "merged_ends", pq.merged_ends, "midpoints", pq.midpoints, "centres", pq.centres,
+                            "unpaired", pq.unpaired, "rounds", pq.rounds);
     d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
                          "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;
   }, py::arg("mesh"), py::arg("directions"), py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
-     "members of QuadRemeshOptions (edge_length, pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
+     "members of QuadRemeshOptions (edge_length, pure_quads, subdivide_for_pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
      "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities; "
      "see nfield/remesh/quad_remesher.hpp)");
 

@@ -27,7 +27,7 @@ def option_properties() -> dict:
         "edge_length": FloatProperty(
             name="Edge Length", default=0.05, min=1e-6, soft_max=10.0, subtype="DISTANCE", unit="LENGTH",
             description="Target edge length of the quads, in object units"),
-        "pure_quads": _switch("Pure Quads", "Only quads (one subdivision step of a coarser quad-dominant mesh); off: "
+        "pure_quads": _switch("Pure Quads", "Only quads (the few triangles and pentagons paired by half rows of quads); off: "
                               "quad-dominant (a few triangles and pentagons where rows end)", False),
         "keep_boundary": _switch("Keep Boundary", "Output edges follow the open boundary"),
         "keep_sharp": _switch("Keep Sharp Edges", "Output edges follow edges whose dihedral angle exceeds Sharp Angle "

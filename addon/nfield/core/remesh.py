@@ -259,9 +259,10 @@ def _positive(value: Any, name: str) -> float:
 
 
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
-                n: int | None = None, pure_quads: bool = False, keep_boundary: bool = True,
-                sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0, seed: int = 0, iterations: int = 10,
-                relax_iterations: int = 2, strict: bool = False, cancel_position_singularities: bool = True,
+                n: int | None = None, pure_quads: bool = False, pure_quad_method: str = "pair",
+                keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
+                seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
+                strict: bool = False, cancel_position_singularities: bool = True,
                 progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
@@ -269,8 +270,11 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         is, n = 1 and n = 2 take the field and its perpendicular.
     target_faces : about this many output faces (quads), or
     edge_length : the output edge length in mesh units (give exactly one of the two).
-    pure_quads : False: quad-dominant (a few triangles and pentagons near singularities); True: quads only
-        (the lattice is made twice as coarse, then every face is split into quads once).
+    pure_quads : False: quad-dominant (a few triangles and pentagons near singularities); True: quads only.
+    pure_quad_method : how pure quads are made. "pair" (default): at the target edge length, each odd face
+        (triangle, pentagon) is joined to the nearest other one (or to the boundary) by a path of faces that
+        are split into half-width quads; "subdivide": a lattice twice as coarse, every face split into quads
+        once (about as many faces, but 1.5-3x further from the input).
     keep_boundary, sharp_angle : feature curves the output keeps: boundaries, and edges whose dihedral angle
         exceeds ``sharp_angle`` degrees (None or 0: none).
     feature_field_angle : a sharp edge is kept only where the field runs within this many degrees (0..45) of
@@ -278,6 +282,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     seed : the random lattice origins; the same seed gives the same mesh.
     iterations : Gauss-Seidel sweeps of the position field per hierarchy level.
     relax_iterations : smoothing steps (towards face centroids, then back onto the surface) after extraction.
+    field_relax_iterations : steps moving each vertex so that its edges run along the field (then back onto
+        the surface), before the last untangling step; 0 skips them.
     strict : True refuses (ValueError) a mesh with a component too small for the edge length; False
         leaves such components out and lists them in ``stats["messages"]``.
     cancel_position_singularities : pair the lattice's row ends (dislocations) with each other, with the
@@ -292,6 +298,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     """
     t0 = time.perf_counter()
     mesh = _check_mesh(mesh)
+    if pure_quad_method not in ("pair", "subdivide"):
+        raise ValueError(f"pure_quad_method must be 'pair' or 'subdivide', got {pure_quad_method!r}")
     directions, n = field_directions(mesh, field, n)
     if (target_faces is None) == (edge_length is None):
         raise ValueError("give exactly one of target_faces (number of output faces) or edge_length (mesh units)")
@@ -317,13 +325,18 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
         raise ValueError(f"relax_iterations must be an integer in 0..100, got {relax_iterations!r}")
+    if isinstance(field_relax_iterations, bool) or not isinstance(field_relax_iterations, (int, np.integer)) \
+            or not 0 <= int(field_relax_iterations) <= 100:
+        raise ValueError(f"field_relax_iterations must be an integer in 0..100, got {field_relax_iterations!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
     r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quads=bool(pure_quads),
+                             subdivide_for_pure_quads=pure_quad_method == "subdivide",
                              keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle,
                              feature_field_angle=feature_field_angle, seed=int(seed),
                              iterations=int(iterations), relax_iterations=int(relax_iterations),
+                             field_relax_iterations=int(field_relax_iterations),
                              refuse_small_components=bool(strict),
                              cancel_position_singularities=bool(cancel_position_singularities), progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
@@ -339,6 +352,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "edge_length": h,
         "lattice_spacing": float(r["lattice_spacing"]),
         "pure_quads": bool(pure_quads),
+        "pure_quad_method": pure_quad_method if pure_quads else None,
         "seed": int(seed),
         "components": int(r["num_components"]),
         "remeshed_components": int(r["remeshed_components"]),
@@ -347,6 +361,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "extraction": dict(r["extraction"]),
         "cleanup": dict(r["cleanup"]),
         "untangle": dict(r["untangle"]),
+        "pure_quad_conversion": dict(r["pure_quads"]),
         "position_singularities": dict(r["position_singularities"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,

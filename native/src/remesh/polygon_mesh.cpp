@@ -11,10 +11,7 @@ namespace nfield::remesh {
 
 namespace {
 
-inline long long edge_key(int a, int b) {
-  if (a > b) std::swap(a, b);
-  return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
-}
+inline long long edge_key(int a, int b) { return undirected_edge_key(a, b); }
 
 int find(std::vector<int>& parent, int x) {
   while (parent[x] != x) x = parent[x] = parent[parent[x]];
@@ -22,6 +19,29 @@ int find(std::vector<int>& parent, int x) {
 }
 
 }  // namespace
+
+std::vector<std::vector<int>> face_lists(const PolygonMesh& m) {
+  std::vector<std::vector<int>> f(m.num_faces());
+  for (int i = 0; i < m.num_faces(); ++i) f[i].assign(m.face(i), m.face(i) + m.face_size(i));
+  return f;
+}
+
+void set_faces(PolygonMesh& m, const std::vector<std::vector<int>>& faces) {
+  m.offsets.assign(1, 0);
+  m.indices.clear();
+  for (const auto& f : faces)
+    if (!f.empty()) m.add_face(f);
+}
+
+std::vector<int> merge_polygons_across(const std::vector<int>& a, const std::vector<int>& b, int u, int v) {
+  const int ka = static_cast<int>(a.size()), kb = static_cast<int>(b.size());
+  const int ia = static_cast<int>(std::find(a.begin(), a.end(), v) - a.begin());
+  const int ib = static_cast<int>(std::find(b.begin(), b.end(), u) - b.begin());
+  std::vector<int> out;
+  for (int k = 0; k < ka; ++k) out.push_back(a[(ia + k) % ka]);      // v ... u
+  for (int k = 1; k < kb - 1; ++k) out.push_back(b[(ib + k) % kb]);  // after u ... before v
+  return out;
+}
 
 void PolygonMesh::validate() const {
   if (offsets.empty() || offsets.front() != 0 || offsets.back() != static_cast<int>(indices.size()))

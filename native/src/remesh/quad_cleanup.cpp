@@ -11,28 +11,7 @@ namespace nfield::remesh {
 
 namespace {
 
-inline long long edge_key(int a, int b) {
-  if (a > b) std::swap(a, b);
-  return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
-}
-
-std::vector<std::vector<int>> faces_of(const PolygonMesh& m) {
-  std::vector<std::vector<int>> f(m.num_faces());
-  for (int i = 0; i < m.num_faces(); ++i) f[i].assign(m.face(i), m.face(i) + m.face_size(i));
-  return f;
-}
-
-/// Union of faces a and b across their shared edge (u, v), where a contains u -> v and b contains v -> u:
-/// walk a from v round to u, then b from u round to v (exclusive of the shared endpoints' repeats).
-std::vector<int> merge_across(const std::vector<int>& a, const std::vector<int>& b, int u, int v) {
-  const int ka = static_cast<int>(a.size()), kb = static_cast<int>(b.size());
-  const int ia = static_cast<int>(std::find(a.begin(), a.end(), v) - a.begin());
-  const int ib = static_cast<int>(std::find(b.begin(), b.end(), u) - b.begin());
-  std::vector<int> out;
-  for (int k = 0; k < ka; ++k) out.push_back(a[(ia + k) % ka]);  // v ... u
-  for (int k = 1; k < kb - 1; ++k) out.push_back(b[(ib + k) % kb]);  // after u ... before v
-  return out;
-}
+inline long long edge_key(int a, int b) { return undirected_edge_key(a, b); }
 
 /// For each directed edge, the face containing it.
 std::unordered_map<long long, int> directed_faces(const std::vector<std::vector<int>>& faces) {
@@ -45,25 +24,18 @@ std::unordered_map<long long, int> directed_faces(const std::vector<std::vector<
   return d;
 }
 
-void rebuild(PolygonMesh& m, const std::vector<std::vector<int>>& faces) {
-  m.offsets.assign(1, 0);
-  m.indices.clear();
-  for (const auto& f : faces)
-    if (!f.empty()) m.add_face(f);
-}
-
 /// Removes interior doublets (valence-2 vertices: two faces that share both edges of a vertex cannot both
 /// be unfolded there on a smooth surface), repeatedly, since removing one lowers its neighbours' valences.
 /// Feature corners stay (the tip of a wedge is two faces meeting at a valence-2 corner) unless their two
 /// edges are nearly straight (within about 30 degrees: a corner of a feature on a smooth part, where the
 /// two faces would each have a straight angle), or listed in `corners_too`. Returns the number removed.
 int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std::vector<char>* corners_too) {
-  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> faces = face_lists(mesh);
   int removed = 0;
   for (int round = 0; round < 8; ++round) {
     const int before = removed;
-    rebuild(mesh, faces);
-    faces = faces_of(mesh);
+    set_faces(mesh, faces);
+    faces = face_lists(mesh);
     const VertexValence vv = vertex_valences(mesh);
     auto dir = directed_faces(faces);
     for (int v = 0; v < mesh.num_vertices(); ++v) {
@@ -102,7 +74,7 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std:
       if (it == dir.end()) continue;
       const int f2 = it->second;
       if (f2 == f1) continue;
-      std::vector<int> merged = merge_across(faces[f1], faces[f2], v, b);
+      std::vector<int> merged = merge_polygons_across(faces[f1], faces[f2], v, b);
       // merged reads b .. a v a ..: drop v and the repeated a. Other valence-2 vertices the two faces share
       // (a chain of doublets along their common border) go with it.
       merged.erase(std::remove_if(merged.begin(), merged.end(), [&](int w) {
@@ -128,14 +100,14 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std:
     }
     if (removed == before) break;
   }
-  rebuild(mesh, faces);
+  set_faces(mesh, faces);
   return removed;
 }
 
 }  // namespace
 
 int split_cone_vertices(PolygonMesh& mesh, std::vector<char>& kind) {
-  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> faces = face_lists(mesh);
   auto dir = directed_faces(faces);
   const VertexValence vv = vertex_valences(mesh);
   auto face_of = [&](int a, int b) {  // the face containing a -> b
@@ -202,12 +174,12 @@ int split_cone_vertices(PolygonMesh& mesh, std::vector<char>& kind) {
     for (int g : fan) touched[g] = 1;
     ++split;
   }
-  if (split) rebuild(mesh, faces);
+  if (split) set_faces(mesh, faces);
   return split;
 }
 
 int merge_cone_vertices(PolygonMesh& mesh, const std::vector<char>& kind) {
-  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> faces = face_lists(mesh);
   auto dir = directed_faces(faces);
   const VertexValence vv = vertex_valences(mesh);
   std::vector<std::vector<int>> neighbours(mesh.num_vertices());
@@ -263,7 +235,7 @@ int merge_cone_vertices(PolygonMesh& mesh, const std::vector<char>& kind) {
       break;
     }
   }
-  if (merged) rebuild(mesh, faces);
+  if (merged) set_faces(mesh, faces);
   return merged;
 }
 
@@ -272,7 +244,7 @@ int remove_doublets_at(PolygonMesh& mesh, const std::vector<char>& kind, const s
 }
 
 int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int max_quads) {
-  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> faces = face_lists(mesh);
   auto dir = directed_faces(faces);
   std::vector<int> valence = vertex_valences(mesh).valence;
   auto face_across = [&](int u, int v) {  // the face containing v -> u (across the edge u -> v)
@@ -361,11 +333,15 @@ int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int ma
     for (size_t i = 0; i < c.strip.size(); ++i) faces[c.strip[i]] = i < c.replacement.size() ? c.replacement[i] : std::vector<int>{};
     ++done;
   }
-  rebuild(mesh, faces);
+  set_faces(mesh, faces);
   return done;
 }
 
 double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly) {
+  return polygon_min_jacobian(P, poly, std::vector<char>());
+}
+
+double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly, const std::vector<char>& skip) {
   const int k = static_cast<int>(poly.size());
   Vec3 n = Vec3::Zero();
   for (int i = 0; i < k; ++i) n += P[poly[i]].cross(P[poly[(i + 1) % k]]);
@@ -373,6 +349,7 @@ double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& 
   n.normalize();
   double worst = 1;
   for (int i = 0; i < k; ++i) {
+    if (poly[i] < static_cast<int>(skip.size()) && skip[poly[i]]) continue;
     const Vec3 e1 = P[poly[(i + 1) % k]] - P[poly[i]], e2 = P[poly[(i + k - 1) % k]] - P[poly[i]];
     const double l = e1.norm() * e2.norm();
     worst = std::min(worst, l > 0 ? e1.cross(e2).dot(n) / l : -1.0);
@@ -382,13 +359,13 @@ double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& 
 
 CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double min_jacobian) {
   CleanupReport report;
-  std::vector<std::vector<int>> faces = faces_of(mesh);
-  rebuild(mesh, faces);
+  std::vector<std::vector<int>> faces = face_lists(mesh);
+  set_faces(mesh, faces);
   report.doublets = remove_doublets(mesh, kind, nullptr);
-  faces = faces_of(mesh);
+  faces = face_lists(mesh);
   // Triangle pairs and triangle + pentagon pairs, best first.
-  rebuild(mesh, faces);
-  faces = faces_of(mesh);
+  set_faces(mesh, faces);
+  faces = face_lists(mesh);
   {
     const VertexValence vv = vertex_valences(mesh);
     std::vector<int> valence = vv.valence;
@@ -410,7 +387,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
         const int g = it->second;
         const size_t kg = faces[g].size();
         if (g == f || (kg != 3 && kg != 5) || (kg == 3 && g < f)) continue;
-        const std::vector<int> un = merge_across(p, faces[g], u, v);
+        const std::vector<int> un = merge_polygons_across(p, faces[g], u, v);
         if (kg == 3) {
           const double q = polygon_min_jacobian(mesh.positions, un);
           if (q > min_jacobian) cands.push_back({q + 1.0, f, g, un, {}, 0});
@@ -449,7 +426,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
       (c.b.empty() ? report.triangle_pairs : report.triangle_pentagon_pairs)++;
     }
   }
-  rebuild(mesh, faces);
+  set_faces(mesh, faces);
   report.triangle_strips = pair_triangles_through_strips(mesh, min_jacobian);
   report.doublets += remove_doublets(mesh, kind, nullptr);  // merging triangle pairs can leave valence-2 vertices
   report.split_cones = split_cone_vertices(mesh, kind);
@@ -462,7 +439,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
 }
 
 int split_large_faces(PolygonMesh& mesh, std::vector<char>& kind, const ProjectionTargets& targets, int min_size) {
-  std::vector<std::vector<int>> faces = faces_of(mesh);
+  std::vector<std::vector<int>> faces = face_lists(mesh);
   std::vector<std::vector<int>> out;
   int split = 0;
   for (auto& f : faces) {
@@ -484,13 +461,15 @@ int split_large_faces(PolygonMesh& mesh, std::vector<char>& kind, const Projecti
     if (k % 2 == 1) out.push_back({centre, f[k - 1], f[0]});
     ++split;
   }
-  rebuild(mesh, out);
+  set_faces(mesh, out);
   return split;
 }
 
-void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations) {
+void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int iterations,
+                    const std::vector<char>* movable) {
   const int V = mesh.num_vertices();
   for (int it = 0; it < iterations; ++it) {
+    const std::vector<Vec3> before = movable ? mesh.positions : std::vector<Vec3>();
     std::vector<Vec3> sum(V, Vec3::Zero()), normal(V, Vec3::Zero());
     std::vector<int> count(V, 0);
     for (int f = 0; f < mesh.num_faces(); ++f) {
@@ -503,7 +482,7 @@ void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Proj
       }
     }
     for (int v = 0; v < V; ++v) {
-      if (count[v] == 0 || kind[v] == kCorner) continue;
+      if (count[v] == 0 || kind[v] == kCorner || (movable && !(*movable)[v])) continue;
       // Tangential: the move keeps no part along the vertex's normal, so the vertex stays near the surface
       // and its projection near where it was (on a fingertip the centroids lie inside the part, and their
       // nearest surface point would be the tip for every vertex around it).
@@ -512,6 +491,9 @@ void relax_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Proj
       mesh.positions[v] += d;
     }
     project_vertices(mesh, kind, targets);
+    if (movable)
+      for (int v = 0; v < V; ++v)
+        if (!(*movable)[v]) mesh.positions[v] = before[v];
   }
 }
 

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "nfield/errors.hpp"
+#include "nfield/remesh/field_relaxation.hpp"
 #include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
@@ -110,6 +111,25 @@ UntangleReport untangle(PolygonMesh& mesh, std::vector<char>& kind, const Projec
   return r;
 }
 
+/// Projects the vertices from `first` on onto the input (project_vertices); the others stay where they are.
+void project_new_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets, int first) {
+  std::vector<char> project_kind = kind;
+  std::fill(project_kind.begin(), project_kind.begin() + first, kNoFeature);
+  const std::vector<Vec3> kept(mesh.positions.begin(), mesh.positions.begin() + first);
+  project_vertices(mesh, project_kind, targets);
+  std::copy(kept.begin(), kept.end(), mesh.positions.begin());
+}
+
+void accumulate(PureQuadReport& total, const PureQuadReport& r) {
+  if (total.rounds == 0 && total.paths == 0) total.odd_faces = r.odd_faces;  // the first round's count
+  total.paths += r.paths;
+  total.boundary_paths += r.boundary_paths;
+  total.merged_ends += r.merged_ends;
+  total.midpoints += r.midpoints;
+  total.centres += r.centres;
+  total.unpaired = r.unpaired;
+}
+
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
 
 void check_options(const QuadRemeshOptions& o) {
@@ -119,6 +139,8 @@ void check_options(const QuadRemeshOptions& o) {
     throw ParameterError("quad remesh: sharp_angle must be below 180 degrees (<= 0 disables sharp edges)");
   if (o.iterations < 1 || o.iterations > 1000) throw ParameterError("quad remesh: iterations must be in 1..1000");
   if (o.relax_iterations < 0 || o.relax_iterations > 100) throw ParameterError("quad remesh: relax_iterations must be in 0..100");
+  if (o.field_relax_iterations < 0 || o.field_relax_iterations > 100)
+    throw ParameterError("quad remesh: field_relax_iterations must be in 0..100");
   if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
   if (!(o.feature_field_angle_degrees >= 0 && o.feature_field_angle_degrees <= 45))
     throw ParameterError("quad remesh: feature_field_angle must be in 0..45 degrees");
@@ -141,7 +163,8 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   };
   report(0.0);
   QuadRemeshResult result;
-  const double s = options.pure_quads ? 2 * options.edge_length : options.edge_length;
+  const bool subdivide = options.pure_quads && options.subdivide_for_pure_quads;
+  const double s = subdivide ? 2 * options.edge_length : options.edge_length;
   result.lattice_spacing = s;
 
   // 1. Cut surface, restricted to the components that can hold the lattice.
@@ -316,7 +339,39 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
 
   // 7. Pure quads.
   UntangleReport before_subdivision;
-  if (options.pure_quads) {
+  if (options.pure_quads && !subdivide) {
+    // At full resolution: the quad-dominant mesh untangled (faces may split), then its odd faces paired.
+    // Faces still flipped after that are split (untangle) and paired again, up to twice.
+    before_subdivision = untangle(result.mesh, result.vertex_feature_kind, targets, true, s);
+    for (int round = 0; round < 3; ++round) {
+      const int old_vertices = result.mesh.num_vertices();
+      const PureQuadReport r = convert_to_pure_quads(result.mesh, result.vertex_feature_kind, targets);
+      accumulate(result.pure_quads, r);
+      project_new_vertices(result.mesh, result.vertex_feature_kind, targets, old_vertices);
+      // Only the faces the conversion made are relaxed (their flat corners at midpoints open up); the rest
+      // was relaxed already, and more steps would slide curve vertices further along their features.
+      std::vector<char> movable(result.mesh.num_vertices(), 0);
+      for (int f = 0; f < result.mesh.num_faces(); ++f) {
+        const int* fv = result.mesh.face(f);
+        const int k = result.mesh.face_size(f);
+        if (std::none_of(fv, fv + k, [&](int v) { return v >= old_vertices; })) continue;
+        for (int i = 0; i < k; ++i) movable[fv[i]] = 1;
+      }
+      relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations, &movable);
+      if (round == 2) break;
+      const std::vector<double> jac = scaled_jacobians_on(result.mesh, targets);
+      if (std::none_of(jac.begin(), jac.end(), [](double q) { return q <= 0; })) break;
+      const UntangleReport u = untangle(result.mesh, result.vertex_feature_kind, targets, true, s);
+      before_subdivision.flipped_before += u.flipped_before;
+      before_subdivision.moved_vertices += u.moved_vertices;
+      before_subdivision.released_features += u.released_features;
+      before_subdivision.split_faces += u.split_faces;
+      before_subdivision.removed_doublets += u.removed_doublets;
+      before_subdivision.collapsed_edges += u.collapsed_edges;
+      ++result.pure_quads.rounds;
+      if (u.split_faces == 0 && u.collapsed_edges == 0 && u.removed_doublets == 0 && u.dropped_scraps == 0) break;
+    }
+  } else if (options.pure_quads) {
     before_subdivision = untangle(result.mesh, result.vertex_feature_kind, targets, true, s, 0.05);
     std::vector<int> kind;
     std::vector<std::array<int, 2>> edge_of;
@@ -332,16 +387,13 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
         if (std::sqrt(targets.feature_edges.closest(fine.positions[v]).squared_distance) < 0.25 * length) fkind[v] = kCurve;
       }
     }
-    std::vector<char> project_kind = fkind;
-    for (int v = 0; v < fine.num_vertices(); ++v)
-      if (kind[v] == 0) project_kind[v] = kNoFeature;  // original vertices stay where they are
-    std::vector<Vec3> kept_positions(fine.positions.begin(), fine.positions.begin() + result.mesh.num_vertices());
-    project_vertices(fine, project_kind, targets);
-    std::copy(kept_positions.begin(), kept_positions.end(), fine.positions.begin());
+    const int old_vertices = result.mesh.num_vertices();  // subdivide_to_quads numbers the original vertices first
     result.mesh = std::move(fine);
+    project_new_vertices(result.mesh, fkind, targets, old_vertices);
     result.vertex_feature_kind = std::move(fkind);
     relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   }
+  relax_along_field(result.mesh, result.vertex_feature_kind, targets, directions, options.field_relax_iterations);
   // 8. Guarded last step: vertices of flipped faces moved until none is left (quad_untangle.hpp); faces that
   //    stay flipped split along a diagonal. For pure quads this runs on the quad-dominant mesh before the
   //    subdivision too (a split face still becomes quads there), and after it without splits.

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <utility>
 #include <vector>
 
 namespace nfield::remesh {
@@ -78,6 +79,20 @@ PolygonMesh subdivide_to_quads(const PolygonMesh& mesh, std::vector<int>* kind_o
 
 /// Fan triangulation of every face from its first vertex (triangles keep the face's orientation).
 std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh);
+
+/// Key of the undirected edge {a, b} (the same for both directions).
+inline long long undirected_edge_key(int a, int b) {
+  if (a > b) std::swap(a, b);
+  return (static_cast<long long>(a) << 32) | static_cast<unsigned int>(b);
+}
+
+/// The faces as vertex lists, and back (empty lists are skipped).
+std::vector<std::vector<int>> face_lists(const PolygonMesh& mesh);
+void set_faces(PolygonMesh& mesh, const std::vector<std::vector<int>>& faces);
+
+/// Union of faces a and b across their shared edge (u, v), where a contains u -> v and b contains v -> u:
+/// a from v round to u, then b after u up to before v.
+std::vector<int> merge_polygons_across(const std::vector<int>& a, const std::vector<int>& b, int u, int v);
 
 /// Mean of the vertices of face f (mesh units).
 Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f);

@@ -68,12 +68,16 @@ int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian = 0.2, 
 int split_large_faces(PolygonMesh& mesh, std::vector<char>& feature_kind, const ProjectionTargets& targets,
                       int min_size = 6);
 
-/// `iterations` relaxation steps (see above), each followed by projection onto the input.
+/// `iterations` relaxation steps (see above), each followed by projection onto the input. `movable`
+/// (optional, one per vertex): only these vertices move.
 void relax_vertices(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,
-                    int iterations);
+                    int iterations, const std::vector<char>* movable = nullptr);
 
 /// Minimum over the corners of the polygon (given by its vertex list) of (e1 x e2) . N / (|e1||e2|), with N
 /// its Newell normal; 1 for a rectangle, <= 0 when folded.
 double polygon_min_jacobian(const std::vector<Vec3>& positions, const std::vector<int>& polygon);
+/// The same over the corners at vertices v without skip[v] (indices beyond `skip` count).
+double polygon_min_jacobian(const std::vector<Vec3>& positions, const std::vector<int>& polygon,
+                            const std::vector<char>& skip);
 
 }  // namespace nfield::remesh

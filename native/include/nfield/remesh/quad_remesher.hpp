@@ -7,8 +7,9 @@
 //   4. hierarchy (multires_hierarchy.hpp) and 4-PoSy position field (position_field.hpp) with spacing s;
 //   5. extraction (quad_extraction.hpp): clusters, links, faces; manifold and oriented by construction;
 //   6. clean-up (quad_cleanup.hpp): doublets and triangle pairs merged, vertices relaxed;
-//   7. optional pure quads: one subdivision step (the lattice spacing is then twice the edge length, so the
-//      output edge length stays the requested one), new vertices projected onto the input.
+//   7. optional pure quads (pure_quads.hpp): the odd faces paired by paths of faces that are split into
+//      half-width quads along the way, at the target edge length; or (subdivide_for_pure_quads) one
+//      subdivision step of a lattice twice as coarse, new vertices projected onto the input.
 //
 // Units: edge_length in mesh units; angles in degrees.
 #pragma once
@@ -20,6 +21,7 @@
 #include "nfield/remesh/polygon_mesh.hpp"
 #include "nfield/remesh/position_field.hpp"
 #include "nfield/remesh/position_singularities.hpp"
+#include "nfield/remesh/pure_quads.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
@@ -28,7 +30,8 @@ namespace nfield::remesh {
 
 struct QuadRemeshOptions {
   double edge_length = 0;            ///< target edge length of the output (mesh units), > 0
-  bool pure_quads = false;           ///< one subdivision step: all faces become quads
+  bool pure_quads = false;           ///< all faces quads (pure_quads.hpp)
+  bool subdivide_for_pure_quads = false;  ///< pure quads by one subdivision step of a lattice twice as coarse
   bool keep_boundary = true;         ///< boundary edges are feature curves
   double sharp_angle_degrees = 40;   ///< edges with a larger dihedral angle are feature curves (<= 0: none)
   double feature_field_angle_degrees = 35;  ///< sharp edges further than this from the field are not kept
@@ -36,6 +39,7 @@ struct QuadRemeshOptions {
   int iterations = 10;               ///< Gauss-Seidel sweeps per hierarchy level
   int max_face_size = 12;            ///< larger extracted faces are dropped
   int relax_iterations = 2;          ///< relaxation steps after extraction (and after subdivision)
+  int field_relax_iterations = 6;    ///< steps of relaxation along the field before the last step (field_relaxation.hpp)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
   bool cancel_position_singularities = true;  ///< min-cost flow on the integer offsets (position_singularities.hpp)
 };
@@ -54,6 +58,7 @@ struct QuadRemeshResult {
   int cleanup_split_faces = 0;            ///< faces of 6 or more sides split (split_large_faces)
   CancellationReport cancellation;        ///< position singularities before / after the flow
   UntangleReport untangle;                ///< flipped faces before / after the last step
+  PureQuadReport pure_quads;              ///< the conversion to pure quads at full resolution
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
