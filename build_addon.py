@@ -3,7 +3,8 @@
 
 pip and CMake do the building (pyproject.toml, scikit-build-core, CMakeLists.txt); this driver sets up the
 machine, builds for every Python of the test matrix, repairs the wheels, packs the Blender zips and runs the
-tests. Standard library only; run it with the system python3 from the repository root:
+tests (the order of its legs: tests/drivers/suite_legs.py). Standard library only; run it with the system
+python3 from the repository root:
 
     python3 build_addon.py setup                  # Debian packages + the virtual environments (idempotent)
     python3 build_addon.py build [--python PATH] [--debug] [--sanitize]   # the module into addon/nfield/
@@ -143,6 +144,21 @@ def run(cmd, *, env=None, cwd=ROOT, check=True, capture=False, quiet=False):
 
 
 # ---------------------------------------------------------------------------------------- setup
+
+def run_teed(cmd, *, env, cwd, keep=lambda line: False) -> tuple[int, list[str]]:
+    """Runs cmd with its output passed through to ours line by line; returns (exit code, the lines for
+    which keep(line) is true)."""
+    print("+ " + " ".join(shlex.quote(shown(str(c))) for c in cmd), flush=True)
+    kept = []
+    with subprocess.Popen([str(c) for c in cmd], env=env, cwd=cwd, stdin=subprocess.DEVNULL,
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace") as proc:
+        for line in proc.stdout:
+            sys.stdout.write(line)
+            if keep(line):
+                kept.append(line.strip())
+        sys.stdout.flush()
+    return proc.returncode, kept
+
 
 def missing_debian_packages() -> list[str]:
     if shutil.which("dpkg-query") is None:
@@ -642,144 +658,9 @@ def addon_env() -> dict:
     return env
 
 
-def installed_env() -> dict:
-    """Environment of a test run against the installed nfield (a wheel, or the extension inside Blender):
-    tests/conftest.py keeps addon/ off sys.path (NFIELD_TEST_INSTALLED)."""
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    env["NFIELD_TEST_INSTALLED"] = "1"
-    return env
-
-
-class Legs:
-    """The legs of a test run, each timed; `summary()` prints one line per leg (ok/FAILED, what, time)."""
-
-    def __init__(self):
-        self.rows: list[tuple[str, bool, str]] = []
-
-    def run(self, title: str, job) -> bool:
-        """Runs job() -> (ok, detail) or raises Failure; records the outcome and its wall time."""
-        import time
-
-        start = time.monotonic()
-        try:
-            ok, detail = job()
-        except Failure as exc:
-            print(f"build_addon: error: {exc}", file=sys.stderr, flush=True)
-            ok, detail = False, "FAILED"
-        self.rows.append((title, ok, f"{detail} in {time.monotonic() - start:.0f} s"))
-        return ok
-
-    def skip(self, title: str, reason: str) -> None:
-        self.rows.append((title, True, f"skipped: {reason}"))
-
-    def summary(self) -> bool:
-        say("summary:")
-        for title, ok, detail in self.rows:
-            say(f"  {'ok    ' if ok else 'FAILED'}  {title}: {detail}")
-        return all(ok for _, ok, _ in self.rows)
-
-
-def run_teed(cmd, *, env, cwd, keep=lambda line: False) -> tuple[int, list[str]]:
-    """Runs cmd with its output passed through to ours line by line; returns (exit code, the lines for
-    which keep(line) is true)."""
-    print("+ " + " ".join(shlex.quote(shown(str(c))) for c in cmd), flush=True)
-    kept = []
-    with subprocess.Popen([str(c) for c in cmd], env=env, cwd=cwd, stdin=subprocess.DEVNULL,
-                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace") as proc:
-        for line in proc.stdout:
-            sys.stdout.write(line)
-            if keep(line):
-                kept.append(line.strip())
-        sys.stdout.flush()
-    return proc.returncode, kept
-
-
-def run_pytest(python: Path, args: list[str], env: dict | None = None, wrapper: list = ()) -> tuple[bool, str]:
-    """pytest in a fresh process of `python` (started through `wrapper`, if any); (passed, pytest's closing
-    line such as '40 passed in 61s')."""
-    import re
-
-    closing_line = re.compile(r"^(?:=+ )?(\d+ (?:passed|failed|skipped|deselected|error).* in [0-9.]+s.*?)(?: =+)?$")
-    code, lines = run_teed([*wrapper, python, "-m", "pytest", *args], env=env or addon_env(), cwd=ROOT,
-                           keep=lambda line: bool(closing_line.match(line.strip())))
-    closing = closing_line.match(lines[-1]).group(1) if lines else f"exit {code}"
-    if code == 5:
-        return False, "no tests collected"
-    return code == 0, closing
-
-
-# pytest markers (registered in tests/conftest.py): `blender` = the headless Blender suite (PyPI bpy),
-# `gui` = Debian's Blender 3.4 (real window under Xvfb, legacy install).
-CORE_SELECTION = ["-m", "not blender and not gui"]
-# One pytest worker per core (pytest-xdist) for the core suite: hundreds of short, independent tests. The
-# Blender legs stay in one process (each installs the extension into its own profile).
-PYTEST_WORKERS = ["-n", str(min(os.cpu_count() or 1, 4))]
-BLENDER_SELECTION = ["-m", "blender"]
-GUI_SELECTION = ["-m", "gui"]
-
-
 def cmd_test(pytest_args: list[str]) -> int:
-    """The whole test suite, leg by leg (see Legs): set-up, builds, wheels and zips, C++ tests, `pip install .`
-    under each Python, the core suite under each Python from its repaired wheel, the headless Blender suite
-    under each bpy release from the extension zip, the real-window tests, then the sanitizer job and a short
-    fuzz run. With pytest arguments: only `pytest tests <args>` in .venv (plus the hardening jobs unless
-    NFIELD_SKIP_HARDENING=1)."""
-    if pytest_args[:1] == ["--"]:  # `build_addon.py test -- -k foo`: the separator is not for pytest
-        pytest_args = pytest_args[1:]
-    if pytest_args[:1] == ["--quick"]:
-        return cmd_quick_test(pytest_args[1:])
-    legs = Legs()
-    legs.run("setup", lambda: (cmd_setup() == 0, "done"))
-    envs = ready_envs()
-    if not legs.run("build, wheels and zips", lambda: (cmd_package(argparse.Namespace(python=None)) == 0,
-                                                       f"Python {', '.join(e.version for e in envs if e.builds)}")):
-        legs.summary()
-        return 1
-    if pytest_args:
-        names_paths = any(not a.startswith("-") and Path(a.split("::")[0]).exists() for a in pytest_args)
-        legs.run("pytest " + " ".join(pytest_args),
-                 lambda: run_pytest(VENV_PY, ([] if names_paths else ["tests"]) + pytest_args))
-        return run_hardening_jobs(legs)
-    main_build = BUILD_ROOT / ("cp%d%d-cp%d%d-linux_x86_64" % (*MAIN_ENV.python, *MAIN_ENV.python))
-    if (main_build / "CTestTestfile.cmake").exists():  # C++ tests (native/tests/*.cpp); before pip's builds
-        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", main_build, "--output-on-failure"],
-                                                   check=False).returncode == 0, "ctest"))
-    for env in envs:
-        if env.core_suite:
-            legs.run(f"pip install . (Python {env.version})",
-                     lambda env=env: driver("installed_package").pip_install_check(THIS, env))
-    for env in envs:
-        if env.core_suite:
-            tag = "cp" + env.version.replace(".", "")
-            wheel = next(DIST.glob(f"nfield-*-{tag}-{tag}-manylinux_*.whl"))
-            dev_module = PACKAGE_DIR / f"_native.cpython-{tag[2:]}-x86_64-linux-gnu.so"
-            legs.run(f"core suite, Python {env.version}, from {wheel.name} (system libraries hidden)",
-                     lambda env=env, wheel=wheel, dev=dev_module:
-                     driver("installed_package").core_suite_from_wheel(THIS, env, wheel, dev))
-    for env in sorted(envs, key=lambda e: [int(x) for x in e.bpy.split(".")]):
-        legs.run(f"headless Blender suite, bpy {env.bpy} (Python {env.version}), extension zip",
-                 lambda env=env: run_pytest(env.python_path, ["tests", *BLENDER_SELECTION], env=installed_env()))
-    missing = [e for e in ALL_ENVS if e not in envs]
-    for env in missing:
-        legs.skip(f"Python {env.version} legs (bpy {env.bpy})", f"no CPython {env.version} on this machine")
-    legs.run("Debian Blender 3.4 (real window, legacy zip)",
-             lambda: run_pytest(VENV_PY, ["tests", *GUI_SELECTION], env=installed_env()))
-    return run_hardening_jobs(legs)
-
-
-def cmd_quick_test(pytest_args: list[str]) -> int:
-    """The inner loop (about a minute): build for .venv's Python only, the C++ tests, and the core suite
-    without the `slow` tests; no wheels, no zip, no Blender, no hardening jobs."""
-    legs = Legs()
-    legs.run("setup", lambda: (cmd_setup() == 0, "done"))
-    module = build()
-    if (module.parent / "CTestTestfile.cmake").exists():
-        legs.run("C++ tests (ctest)", lambda: (run(["ctest", "--test-dir", module.parent, "--output-on-failure"],
-                                                   check=False).returncode == 0, "ctest"))
-    legs.run("core suite without slow tests, Python %s" % MAIN_ENV.version,
-             lambda: run_pytest(VENV_PY, ["tests", "-q", *PYTEST_WORKERS, "-m", "not blender and not gui and not slow",
-                                          *pytest_args]))
-    return 0 if legs.summary() else 1
+    """`test`: every leg of the suite; `test --quick`: the inner loop (tests/drivers/suite_legs.py)."""
+    return driver("suite_legs").run_test_command(THIS, pytest_args)
 
 
 def driver(name: str):
@@ -790,20 +671,6 @@ def driver(name: str):
     if str(ROOT / "tests" / "drivers") not in sys.path:
         sys.path.insert(0, str(ROOT / "tests" / "drivers"))
     return importlib.import_module(name)
-
-
-def run_hardening_jobs(legs: Legs) -> int:
-    """After the pytest legs: the sanitizer job and a short fuzz run (docs/hardening.md), each timed, then
-    the summary of every leg. Runs even when a leg failed, so one CI run reports everything.
-    NFIELD_SKIP_HARDENING=1 skips both (fast local iteration; CI never sets it)."""
-    if os.environ.get("NFIELD_SKIP_HARDENING", "") not in ("", "0"):
-        say("NFIELD_SKIP_HARDENING is set: skipping the sanitizer job and the fuzz run")
-    else:
-        seconds = driver("fuzz_run").FUZZ_SECONDS_IN_TEST
-        legs.run("sanitizer job (ASan/UBSan pytest)", lambda: (cmd_sanitize([]) == 0, "passed"))
-        legs.run(f"fuzz run ({seconds} s per target)",
-                 lambda: (cmd_fuzz(argparse.Namespace(seconds=seconds, targets=[])) == 0, "passed"))
-    return 0 if legs.summary() else 1
 
 
 def cmd_sanitize(pytest_args: list[str]) -> int:

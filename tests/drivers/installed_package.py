@@ -12,6 +12,8 @@ import shutil
 import time
 from pathlib import Path
 
+import pytest_runs
+
 # Shared libraries of the manylinux policy (every Linux system has them): never hidden.
 SYSTEM_LIBRARIES = ("linux-vdso", "ld-linux", "libc.so", "libm.so", "libdl.so", "libpthread.so", "librt.so",
                     "libstdc++.so", "libgcc_s.so", "libutil.so")
@@ -87,6 +89,6 @@ def core_suite_from_wheel(driver, env, wheel: Path, dev_module: Path) -> tuple[b
     python = fresh_venv(driver, f"wheel-cp{env.version.replace('.', '')}", env.python)
     numpy = [r for r in env.requirements if r.startswith("numpy")]
     pip_install(driver, python, str(wheel), *numpy, *driver.TEST_REQUIREMENTS)
-    run_env = dict(driver.installed_env(), NFIELD_HIDING_PROBE=str(dev_module))
-    return driver.run_pytest(python, ["tests", *driver.PYTEST_WORKERS, *driver.CORE_SELECTION], env=run_env,
-                             wrapper=hide_system_libraries(driver, dev_module))
+    run_env = dict(pytest_runs.installed_env(), NFIELD_HIDING_PROBE=str(dev_module))
+    args = ["tests", *pytest_runs.PYTEST_WORKERS, *pytest_runs.CORE_SELECTION]
+    return pytest_runs.run_pytest(driver, python, args, env=run_env, wrapper=hide_system_libraries(driver, dev_module))

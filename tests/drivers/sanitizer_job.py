@@ -11,6 +11,8 @@ import shutil
 import time
 from pathlib import Path
 
+import pytest_runs
+
 # What the job runs: the core suite (no bpy, no Debian Blender) without the tests marked `slow` (the same code
 # paths as the rest on 20k-70k face meshes, about 6x slower under ASan/UBSan) or `no_sanitizer` (they run no
 # native code, or measure memory and address-space limits, which ASan changes).
@@ -96,7 +98,7 @@ def run_sanitizer_job(driver, pytest_args: list[str]) -> int:
     # --capture=sys: pytest's default fd capture would swallow a report written to fd 2 by the runtime
     # (the process aborts before the captured text is shown); sys capture leaves fd 2 alone.
     cmd = [driver.VENV_PY, "-m", "pytest", "-p", "sanitized_module_check", "-p", "no:cacheprovider", "-q",
-           "--capture=sys", "--durations=10", *driver.PYTEST_WORKERS, *SANITIZER_SELECTION, str(tree / "tests"), *pytest_args]
+           "--capture=sys", "--durations=10", *pytest_runs.PYTEST_WORKERS, *SANITIZER_SELECTION, str(tree / "tests"), *pytest_args]
     code, reports = driver.run_teed(cmd, env=sanitizer_env(driver, tree, module), cwd=tree,
                                     keep=is_sanitizer_report)
     end = time.monotonic()
