@@ -46,9 +46,11 @@ struct CancellationOptions {
   /// Extra cost of one unit leaving (or entering) through the boundary (lattice steps). A row that ends on
   /// the boundary leaves a boundary vertex of the wrong valence there (4 edges on a straight boundary, as a
   /// T-junction), one irregular vertex per unit, while two opposite row ends paired inside vanish: without
-  /// this cost the flow sent every row end within a few steps of a hole's rim to the rim (the bunny's base:
-  /// 106 irregular vertices at 5,000 faces, 85 with it; 5 measured better than 3 or 8 there).
-  double boundary_cost = 5.0;
+  /// this cost the flow sent every row end within a few steps of a hole's rim to the rim (the bunny's base
+  /// at 5,000 faces: 106 irregular vertices with 0, 96 with 3, 85 with 5). Not higher: from 4 on, the
+  /// changed pairing left 3 flipped faces on the bunny's ears in pure-quad mode by subdivision at 3,000
+  /// faces (a lattice twice as coarse, the ears one cell across), which the untangling could not repair.
+  double boundary_cost = 3.0;
   int max_change = 2;          ///< at most this many units per offset component and direction
   bool collapse = true;        ///< solve on the lattice-level mesh (lattice_collapse.hpp) instead of the surface
 };
