@@ -151,6 +151,8 @@ void route_residuals(const RemeshSurface& s, const std::vector<std::array<int, 3
         sign[count] = sg;
         ++count;
       }
+      // A boundary edge: the other end is S (a row ending on the boundary), at boundary_cost more.
+      const double extra = count == 1 ? options.boundary_cost : 0.0;
       if (count == 1) {
         node[1] = S;
         sign[1] = -sign[0];
@@ -166,8 +168,8 @@ void route_residuals(const RemeshSurface& s, const std::vector<std::array<int, 3
       Variable v{e, c, {}, {}};
       for (int u = 1; u <= options.max_change; ++u) {
         // Raising by one more unit (u - 1 -> u) moves a unit from `minus` to `plus`; lowering the reverse.
-        v.up.push_back(flow.add_arc(minus, plus, 1, w * std::max(kMinCost, 2.0 * u - 1.0 - 2.0 * m)));
-        v.down.push_back(flow.add_arc(plus, minus, 1, w * std::max(kMinCost, 2.0 * u - 1.0 + 2.0 * m)));
+        v.up.push_back(flow.add_arc(minus, plus, 1, extra + w * std::max(kMinCost, 2.0 * u - 1.0 - 2.0 * m)));
+        v.down.push_back(flow.add_arc(plus, minus, 1, extra + w * std::max(kMinCost, 2.0 * u - 1.0 + 2.0 * m)));
       }
       variables.push_back(std::move(v));
     }
