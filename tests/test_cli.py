@@ -340,6 +340,23 @@ def test_info_reports_boundary():
     assert len(out["sliver_faces"]) == 73
 
 
+@needs_native
+def test_closed_pipe_exits_quietly():
+    """`nfield info MESH | head -0`: the reader is gone before the output is written. The CLI stops with the
+    SIGPIPE status (128 + 13) and says nothing: no 'Broken pipe' error, no traceback from the final flush."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        env = package_env()
+        env.pop("NFIELD_DEBUG", None)
+        proc = subprocess.run([sys.executable, "-m", "nfield", "info", str(CAMEL)], stdout=write_end,
+                              stderr=subprocess.PIPE, text=True, env=env, timeout=600)
+    finally:
+        os.close(write_end)
+    assert proc.returncode == 141, proc.stderr
+    assert proc.stderr == ""
+
+
 # ---------------------------------------------------------------------------------------- errors
 ARG_ERRORS = {
     "unknown_align": (["--align", "sideways"], ["align", "sideways"]),

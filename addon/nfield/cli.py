@@ -520,6 +520,15 @@ def _frac_value(s: str) -> float:
 
 
 # ---------------------------------------------------------------------- entry point
+def _silence_stdout() -> None:
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout without a file descriptor (embedded): nothing left to flush there
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     debug = os.environ.get("NFIELD_DEBUG", "") not in ("", "0")
     parser = build_parser()
@@ -538,6 +547,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted\n")
         return 130
+    except BrokenPipeError:
+        # The reader went away (`nfield ... | head`): stop quietly, as a C tool killed by SIGPIPE would. Point
+        # stdout at /dev/null so that the interpreter's final flush does not raise again.
+        _silence_stdout()
+        return 128 + 13
     except MemoryError as exc:  # std::bad_alloc in the solver: an expected failure on too large input
         if debug:
             traceback.print_exc()
