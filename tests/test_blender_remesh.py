@@ -203,6 +203,63 @@ def test_a_design_changed_since_the_last_solve_is_solved_first_or_named(fandisk_
     assert off_cross(after) < 1e-4 and off_cross(before[face]) > 40.0
 
 
+def test_solve_first_runs_in_the_worker_thread_and_its_field_survives_a_cancel(fandisk_with_field):
+    """Invoked from the UI, Quad Remesh solves an outdated design in its worker thread, not in the UI thread:
+    building the recipe solves nothing (the field stays outdated), the thread that runs the recipe solves the
+    current design and then remeshes it. Cancelled after the solve (progress returns False once the remesh
+    reports), nothing is created, and the field solved for it is kept: the design is current afterwards."""
+    import threading
+
+    pkg, nb, obj = fandisk_with_field
+    api = blender_module(pkg, "api")
+    nb.configure(obj, live_update=False)
+    face = 2000
+    normal = np.asarray(obj.data.polygons[face].normal)
+    wanted = _rotated(np.asarray(nb.field(obj).directions)[face][None], normal[None], 45.0)[0]
+    nb.add_constraint(obj, face, wanted)
+    assert nb.field_state(obj) == "outdated"
+
+    def run(recipe, progress):
+        box = {}
+
+        def work():
+            box["thread"] = threading.current_thread().name
+            try:
+                box["value"] = api.remesh_from_recipe(recipe, progress)
+            except BaseException as exc:  # noqa: BLE001 - inspected below
+                box["error"] = exc
+        thread = threading.Thread(target=work, name="nfield-remesh-test")
+        thread.start()
+        thread.join(300)
+        return box
+
+    # cancelled once the remesh has started: the solve before it finished, nothing was created
+    recipe = api.remesh_recipe(obj, target_faces=600)
+    assert recipe["solve"] is not None and nb.field_state(obj) == "outdated"  # nothing solved yet
+    fractions = []
+    box = run(recipe, lambda f: fractions.append(f) or f <= api._SOLVE_SHARE)
+    assert type(box.get("error")).__name__ == "Cancelled", box
+    assert recipe["solve"]["result"] is not None and nb.field_state(obj) == "outdated"
+    objects_before = set(bpy.data.objects.keys())
+    assert api.adopt_recipe_solve(obj, recipe) is True
+    assert nb.field_state(obj) == "current" and set(bpy.data.objects.keys()) == objects_before
+    assert nb.field(obj) is recipe["solve"]["result"]
+
+    # with the design current the recipe has nothing to solve; a changed design again: solve, then remesh
+    assert api.remesh_recipe(obj, target_faces=600)["solve"] is None
+    nb.add_constraint(obj, face + 1, wanted)
+    recipe = api.remesh_recipe(obj, target_faces=600)
+    fractions.clear()
+    box = run(recipe, lambda f: fractions.append(f) or True)
+    assert box["thread"] == "nfield-remesh-test" and "value" in box, box
+    assert fractions == sorted(fractions) and fractions[-1] == pytest.approx(1.0)  # one bar: solve, then remesh
+    new = api.adopt_remesh(obj, recipe, box["value"])
+    assert nb.field_state(obj) == "current" and new.name in bpy.data.objects
+    assert any("solved it again before remeshing" in m for m in box["value"].stats["messages"])
+    _, F = _polygons(new)
+    assert _edge_use(F) == (0, 0) and sum(len(f) == 4 for f in F) > 0.97 * len(F)
+
+
 def test_worker_runs_off_the_ui_thread_reports_progress_and_stops_on_esc(scene):
     """jobs.Worker, the worker thread of the modal operators (quad remesh, spectral precompute), driven by
     stand-ins for the window manager and events: timer events update the progress bar and the status

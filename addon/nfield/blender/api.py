@@ -455,19 +455,23 @@ def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | 
     its current field (the last solve; NFieldError if it has none: solve first). Options as in
     nfield.core.quad_remesh (`edge_length` in object units wins over `target_faces`; `sharp_angle` in degrees,
     None keeps only the boundary). When the design changed since the last solve (field_state "outdated"),
-    `solve_first` solves it again here (NFieldError if that needs a spectral basis first: the Solve button
-    computes it in the background); off, the last solved field is remeshed. Either way recipe["notes"] says
-    so. Run it with remesh_from_recipe (any thread), then adopt_remesh."""
+    `solve_first` has it solved again by remesh_from_recipe, before the remesh and in the same thread
+    (NFieldError here if that needs a spectral basis first: the Solve button computes it in the background);
+    off, the last solved field is remeshed. Either way recipe["notes"] says so. Run it with
+    remesh_from_recipe (any thread; while it runs, a recipe with recipe["solve"] owns the object's session,
+    see jobs.claim), then adopt_remesh, or adopt_recipe_solve alone when the remesh failed."""
     check_mesh_object(obj)
     ensure_idle(obj)
     notes = []
+    solve_job = None
     if field_state(obj) == "outdated":
         if solve_first:
-            if pending_work(obj) == "basis":
+            arrays, entry, session = open_session(obj)
+            if session.pending_work() == "basis":
                 raise NFieldError(f"the design of '{obj.name}' changed since its last solve, and solving it again "
                                   f"needs the spectral basis first: press Solve (it runs in the background), then "
                                   f"remesh")
-            solve(obj)
+            solve_job = {"session": session, "entry": entry, "arrays": arrays}
             notes.append("the design changed since the last solve: solved it again before remeshing")
         else:
             notes.append("the design changed since the last solve: remeshed the last solved field "
@@ -487,30 +491,65 @@ def remesh_recipe(obj, *, target_faces: int | None = 5000, edge_length: float | 
                "pure_quads": bool(pure_quads), "keep_boundary": bool(keep_boundary),
                "sharp_angle": None if sharp_angle is None else float(sharp_angle), "seed": int(seed),
                "cancel_position_singularities": bool(cancel_position_singularities)}
-    return {"object": obj.name, "mesh": entry.mesh, "field": result, "options": options, "notes": notes}
+    return {"object": obj.name, "mesh": entry.mesh, "field": result, "options": options, "notes": notes,
+            "solve": solve_job}
+
+
+#: the share of the progress bar the solve of an outdated design takes before its remesh
+_SOLVE_SHARE = 0.3
 
 
 def remesh_from_recipe(recipe: dict, progress=None):
-    """In any thread: nfield.core.quad_remesh on the recipe (reads no Blender data; releases the GIL).
-    progress(fraction) returning False cancels (nfield.core.Cancelled). NFieldError for what the remesher
-    refuses (a field that is not a cross, line or vector field, a target it cannot meet)."""
+    """In any thread: the solve of an outdated design (recipe["solve"], see remesh_recipe), then
+    nfield.core.quad_remesh on the recipe (reads no Blender data; releases the GIL). progress(fraction)
+    returning False cancels (nfield.core.Cancelled). NFieldError for what the solver or the remesher refuses
+    (a field that is not a cross, line or vector field, a target it cannot meet)."""
+    field, remesh_progress = recipe["field"], progress
+    job = recipe.get("solve")
+    if job is not None:
+        session = job["session"]
+        session.progress = None if progress is None else (lambda f: progress(_SOLVE_SHARE * f))
+        try:
+            job["result"] = field = session.solve()
+        except (ValueError, RuntimeError) as exc:
+            if type(exc).__name__ == "Cancelled":
+                raise
+            raise NFieldError(f"solving the changed design before remeshing failed: {exc}") from None
+        finally:
+            session.progress = None
+        if progress is not None:
+            remesh_progress = lambda f: progress(_SOLVE_SHARE + (1.0 - _SOLVE_SHARE) * f)  # noqa: E731
     try:
-        qm = core_quad_remesh(recipe["mesh"], recipe["field"], progress=progress, **recipe["options"])
+        qm = core_quad_remesh(recipe["mesh"], field, progress=remesh_progress, **recipe["options"])
     except ValueError as exc:
         raise NFieldError(str(exc)) from None
     qm.stats["messages"] = list(recipe.get("notes", ())) + qm.stats["messages"]
     return qm
 
 
+def adopt_recipe_solve(obj, recipe: dict) -> bool:
+    """Main thread: keep the field remesh_from_recipe solved for an outdated design (stored as the object's
+    field, attributes written), also when the remesh after it failed or was cancelled. True if there was one."""
+    job = recipe.get("solve")
+    if job is None or job.get("result") is None or job.get("adopted"):
+        return False
+    adopt_result(obj, job["entry"], job["arrays"], job["result"])
+    job["adopted"] = True
+    return True
+
+
 def adopt_remesh(obj, recipe: dict, quad_mesh):
-    """Main thread: the new object from a remesh result (beside `obj`, selected and active). Returns it."""
+    """Main thread: the new object from a remesh result (beside `obj`, selected and active), after keeping the
+    field solved for it (adopt_recipe_solve). Returns it."""
+    adopt_recipe_solve(obj, recipe)
     V, faces, stats = quad_mesh
     if not faces:
         raise NFieldError(f"the remesh of '{obj.name}' produced no faces: "
                           + ("; ".join(stats.get("messages", [])) or "try a larger target face count"))
     info = {k: stats[k] for k in REMESH_INFO_KEYS if k in stats}
     info["source"] = obj.name
-    info["field_n"] = int(recipe["field"].n)
+    solved = (recipe.get("solve") or {}).get("result")
+    info["field_n"] = int((recipe["field"] if solved is None else solved).n)
     info["seed"] = recipe["options"]["seed"]
     return remesh_object.create(obj, V, faces, name=f"{obj.name}_quads", info=info)
 
@@ -526,5 +565,8 @@ def quad_remesh(obj, *, target_faces: int | None = 5000, edge_length: float | No
     recipe = remesh_recipe(obj, target_faces=target_faces, edge_length=edge_length, pure_quads=pure_quads,
                            keep_boundary=keep_boundary, sharp_angle=sharp_angle, seed=seed,
                            cancel_position_singularities=cancel_position_singularities, solve_first=solve_first)
-    qm = remesh_from_recipe(recipe, progress)
+    try:
+        qm = remesh_from_recipe(recipe, progress)
+    finally:
+        adopt_recipe_solve(obj, recipe)  # a field solved for the remesh is kept even if the remesh failed
     return adopt_remesh(obj, recipe, qm), qm.stats

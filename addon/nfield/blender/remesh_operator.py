@@ -3,7 +3,9 @@ one, whose edges follow the object's designed field (nfield.core.quad_remesh, do
 
 The source object is left as it is. Invoked from the UI, the remesher runs in a worker thread (the native
 call releases the GIL): progress in the status bar and the window's progress indicator, Esc cancels (the
-remesher stops at its next checkpoint and nothing is created). Executed from a script it blocks. The new
+remesher stops at its next checkpoint and nothing is created). A design changed since its last solve is
+solved first in the same worker (Solve First), which owns the object's session meanwhile (jobs.claim: live
+updates wait for it); the field it solves is kept even when the remesh is cancelled or fails. Executed from a script it blocks. The new
 object is one undo step; its quality figures are reported and stored on it (custom property
 ``nfield_remesh``: quad fraction, irregular vertices against the field's singularities, alignment,
 Hausdorff distance...).
@@ -100,6 +102,10 @@ class NFIELD_OT_quad_remesh(NFieldObjectOperator, bpy.types.Operator):
         self._t0 = time.perf_counter()
         self._worker = jobs.Worker(lambda progress: api.remesh_from_recipe(recipe, progress), remesh_status,
                                    "nfield-remesh")
+        self._claim = None
+        if recipe.get("solve") is not None:  # the worker solves the object's session first
+            self._claim = {"cancel": False, "outcome": None, "t0": self._t0}
+            jobs.claim(obj.name, self._claim)
         self._worker.start(self, context)
         return {"RUNNING_MODAL"}
 
@@ -112,6 +118,13 @@ class NFIELD_OT_quad_remesh(NFieldObjectOperator, bpy.types.Operator):
         self._worker.stop(context)
         seconds = time.perf_counter() - self._t0
         outcome = self._worker.outcome or ("error", RuntimeError("the remesh thread ended without a result"))
+        if self._claim is not None:
+            shared = jobs.release(self._obj_name, self._claim)
+            obj = bpy.data.objects.get(self._obj_name)
+            if obj is not None:
+                api.adopt_recipe_solve(obj, self._recipe)
+                if shared.get("again"):  # the design changed again while the worker ran
+                    jobs.start_later(obj.name)
         if outcome[0] == "error":
             cancelled = self._worker.cancel or type(outcome[1]).__name__ == "Cancelled"
             remesh_status.update(state="cancelled" if cancelled else "failed", message=str(outcome[1]),
