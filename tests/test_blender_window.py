@@ -389,7 +389,9 @@ def _angle_mod(a, b, n) -> float:
 def test_comb_brush_in_real_window(tmp_path, legacy_zip):
     """The comb tool on the Stanford bunny (69,451 faces) in Debian's Blender 3.4 under Xvfb: a horizontal
     drag across the body (tests/blender_scripts/window_comb.py) paints the comb attribute along the stroke
-    in the drag's direction, the solved field there turns to it, and one undo removes the stroke."""
+    in the drag's direction, the solved field there turns to it, and one undo removes the stroke; then Quad
+    Remesh from Field, invoked as the panel button does, solves the changed design and remeshes it in its
+    worker thread."""
     env, xvfb, log = _start_xvfb(tmp_path)
     blender = None
     try:
@@ -416,6 +418,7 @@ def test_comb_brush_in_real_window(tmp_path, legacy_zip):
         (work / "dragged").write_text("1")
         result = _wait_file(work / "result.json", blender, 400)
         undo = _wait_file(work / "undo.json", blender, 400) if "error" not in result else {}
+        remesh = _wait_file(work / "remesh.json", blender, 400) if undo and "error" not in undo else {}
         blender.wait(timeout=60)
     finally:
         console = _stop(blender, xvfb, log)
@@ -469,3 +472,16 @@ def test_comb_brush_in_real_window(tmp_path, legacy_zip):
     assert "error" not in undo, undo.get("error")
     assert undo["undo"] == ["FINISHED"] and not undo["has_comb"] and undo["marker"] == 1, undo
     assert undo["from_before"] < 1e-6 < 0.1 < undo["from_stroke"], undo
+    # Quad Remesh from the panel on a design changed since its last solve: invoke hands the solve and the
+    # remesh to the worker thread (it owns the object's session when invoke returns, the field is still the
+    # old one), the UI thread keeps ticking while the worker runs, and the design is current afterwards; the
+    # new object is quad-dominant and the source keeps its faces
+    print("remesh:", json.dumps(remesh))
+    assert "error" not in remesh, remesh.get("error")
+    assert remesh["invoke"] == ["RUNNING_MODAL"] and remesh["busy_after_invoke"], remesh
+    assert remesh["state_before"] == "outdated" and remesh["state_after"] == "current", remesh
+    assert remesh["status"]["state"] == "finished" and remesh["status"]["ui_updates"] >= 1, remesh["status"]
+    assert remesh["ticks_while_running"] >= 1
+    assert any("solved it again before remeshing" in m for m in remesh["messages"]), remesh["messages"]
+    new = remesh["new_object"]
+    assert new["source_faces_unchanged"] and new["quads"] >= 0.97 * new["faces"] > 0, new

@@ -14,7 +14,12 @@
    faces under the stroke, measured with Blender's own projection) and a screenshot WORKDIR/comb.png
    with the mouse resting on the body (the brush circle around it);
 6. one undo (ed.undo), then WORKDIR/undo.json: the comb attribute, the marker and the field after the
-   undo; then Blender quits. Any exception is written to the JSON file of its phase as {"error": ...}.
+   undo;
+7. Quad Remesh from Field invoked as the panel button does, on a design changed since its last solve (Solve
+   First solves it in the worker), then WORKDIR/remesh.json: what invoke returned, whether the worker owned
+   the object right after, the field state before and after, the operator's status and messages, how often
+   a UI timer ticked meanwhile, the new object's faces; then Blender quits. Any exception is written to the
+   JSON file of its phase as {"error": ...}.
 """
 import json
 import math
@@ -118,7 +123,7 @@ def setup():
 
         before = nb.field(obj)
         STATE.update(obj=obj.name, tool=tool.idname, field_before=np.array(before.directions), result_before=before,
-                     rep_before=np.array(before.representation))
+                     rep_before=np.array(before.representation), source_faces=len(obj.data.polygons))
         bpy.app.timers.register(pick_path, first_interval=1.0)
     except Exception:  # noqa: BLE001
         give_up("ready.json", traceback.format_exc())
@@ -385,6 +390,68 @@ def undo_settled():
         write_json("undo.json", res)
     except Exception:  # noqa: BLE001
         write_json("undo.json", {"error": traceback.format_exc()})
+        bpy.ops.wm.quit_blender()
+        return None
+    bpy.app.timers.register(start_remesh, first_interval=0.5)
+    return None
+
+
+def start_remesh():
+    """Quad Remesh from Field as the panel button runs it (INVOKE_DEFAULT), on a design changed since its
+    last solve (a constraint added with Live Update off), so Solve First has to solve before remeshing."""
+    from nfield.blender import jobs
+
+    try:
+        import nfield.blender as nb
+
+        obj = bpy.data.objects[STATE["obj"]]
+        nb.configure(obj, live_update=False)
+        face = int(np.argmax(np.asarray([p.area for p in obj.data.polygons])))
+        normal = Vector(obj.data.polygons[face].normal)
+        d = Vector(nb.field(obj).directions[face])
+        nb.add_constraint(obj, face, tuple((d * math.cos(0.7) + normal.cross(d) * math.sin(0.7))))
+        res = {"state_before": nb.field_state(obj)}
+        STATE["ticks"] = []
+        bpy.app.timers.register(ui_tick, first_interval=0.0)
+        with bpy.context.temp_override(active_object=obj, object=obj):
+            res["invoke"] = sorted(in_view(bpy.ops.nfield.quad_remesh, "INVOKE_DEFAULT", target_faces=1500))
+        # the worker owns the session and has not solved yet when invoke returns (the UI thread did not solve)
+        res["busy_after_invoke"] = jobs.busy(obj)
+        STATE["remesh"], STATE["t_remesh"] = res, time.time()
+        bpy.app.timers.register(remesh_done, first_interval=0.2)
+    except Exception:  # noqa: BLE001
+        give_up("remesh.json", traceback.format_exc())
+    return None
+
+
+def ui_tick():
+    """A UI-thread timer: its ticks while the worker runs show that the UI stayed responsive."""
+    STATE["ticks"].append(time.time())
+    return None if "remesh_finished" in STATE else 0.05
+
+
+def remesh_done():
+    from nfield.blender import remesh_operator
+
+    status = remesh_operator.remesh_status
+    if status["state"] == "running" and time.time() - STATE["t_remesh"] < 240:
+        return 0.2
+    try:
+        import nfield.blender as nb
+
+        STATE["remesh_finished"] = time.time()
+        obj = bpy.data.objects[STATE["obj"]]
+        res = dict(STATE["remesh"], status={k: v for k, v in status.items() if k != "stats"},
+                   messages=list(status["stats"].get("messages", [])), state_after=nb.field_state(obj),
+                   ticks_while_running=sum(1 for t in STATE["ticks"] if t < STATE["remesh_finished"]))
+        new = bpy.data.objects.get(status["result"])
+        if new is not None:
+            sizes = [len(p.vertices) for p in new.data.polygons]
+            res["new_object"] = {"name": new.name, "faces": len(sizes), "quads": sizes.count(4),
+                                 "source_faces_unchanged": len(obj.data.polygons) == STATE["source_faces"]}
+        write_json("remesh.json", res)
+    except Exception:  # noqa: BLE001
+        write_json("remesh.json", {"error": traceback.format_exc()})
     bpy.ops.wm.quit_blender()
     return None
 
