@@ -335,6 +335,24 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   result.cleanup = cleanup;
   result.cleanup_split_faces = split_large_faces(result.mesh, result.vertex_feature_kind, targets);
   relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
+  {
+    // Cones left as clusters of irregular vertices (some made by the large-face splits) are mended on the
+    // relaxed mesh, whose corners are fair enough to judge the moves by. The merged vertices are projected
+    // onto the input; a relaxation here would pull them towards creases they sit next to (fandisk: a face
+    // across a concave crease, 0.30 -> 0.39% Hausdorff), and step 10 evens them out along the field.
+    std::vector<char> changed;
+    result.cleanup.lowered_irregularity = lower_irregularity(result.mesh, result.vertex_feature_kind, 0.2, 8, &changed);
+    if (result.cleanup.lowered_irregularity) {
+      const std::vector<int> old = compact_vertices(result.mesh);
+      std::vector<char> kind(old.size());
+      for (size_t i = 0; i < old.size(); ++i) kind[i] = result.vertex_feature_kind[old[i]];
+      result.vertex_feature_kind = std::move(kind);
+      const std::vector<Vec3> kept = result.mesh.positions;
+      project_vertices(result.mesh, result.vertex_feature_kind, targets);
+      for (size_t i = 0; i < old.size(); ++i)
+        if (!changed[old[i]]) result.mesh.positions[i] = kept[i];
+    }
+  }
   report(0.95);
 
   // 7. Pure quads.
