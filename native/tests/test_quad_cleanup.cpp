@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "check.hpp"
+#include "nfield/remesh/irregularity_moves.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/quad_stats.hpp"
 #include "nfield/remesh/remesh_surface.hpp"

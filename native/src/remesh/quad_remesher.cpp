@@ -11,6 +11,7 @@
 #include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
+#include "nfield/remesh/irregularity_moves.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
