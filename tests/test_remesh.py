@@ -225,7 +225,9 @@ def test_irregular_vertices_at_most_one_and_a_half_per_singularity(name):
     should give one irregular vertex (or one non-quad face), and the flow pairs the lattice's row ends; the
     clean-up mends cones extracted as a valence-6 vertex beside a triangle, or as two valence-3 vertices on a
     pentagon (measured at 2,000 faces: fertility 46 for 48 singularities, 0.96; rocker arm 31 for 31, 1.0;
-    at 5,000 faces with the benchmark's field the two mends take fertility from 1.54 to 1.25)."""
+    at 5,000 faces with the benchmark's field the two mends take fertility from 1.54 to 1.25). Cones left
+    as clusters of three or four irregular vertices are mended by edge rotations and diagonal collapses
+    (lower_irregularity): the rocker arm here has 25 irregular vertices with them, 31 without."""
     mesh = core_mesh(name)
     field = solve(mesh, n=4, order=2, align="curvature-max")
     V, F, st = quad_remesh(mesh, field, target_faces=2000)
@@ -233,6 +235,10 @@ def test_irregular_vertices_at_most_one_and_a_half_per_singularity(name):
     assert st["irregular_per_singularity"] <= 1.5
     assert st["cleanup"]["split_cones"] + st["cleanup"]["merged_cones"] > 0
     assert st["manifold"] and st["oriented"] and st["inverted_faces"] == 0
+    if name == "rocker-arm.obj":
+        # Each move lowers the count by at least one (measured: 2 moves, 31 -> 25); 28 leaves room for a
+        # platform's rounding to shift one cluster while still failing if the moves stop being made.
+        assert st["cleanup"]["lowered_irregularity"] > 0 and st["irregular_vertices"] <= 28
 
 
 # ---------------------------------------------------------------------------------------------- dirty input

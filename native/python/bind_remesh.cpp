@@ -126,7 +126,8 @@ void bind_remesh(py::module_& m) {
     const CleanupReport& k = r.cleanup;
     d["cleanup"] = named("doublets", k.doublets, "triangle_pairs", k.triangle_pairs + k.triangle_pentagon_pairs,
                          "triangle_strips", k.triangle_strips, "split_cones", k.split_cones, "merged_cones",
-                         k.merged_cones, "split_large_faces", r.cleanup_split_faces);
+                         k.merged_cones, "lowered_irregularity", k.lowered_irregularity, "split_large_faces",
+                         r.cleanup_split_faces);
     const CancellationReport& c = r.cancellation;
     d["position_singularities"] = named(
         "orientation_singularities", c.orientation_singularities, "before", c.position_singularities_before, "after",

@@ -346,12 +346,25 @@ Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f) {
 }
 
 Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f) {
-  const int k = mesh.face_size(f);
-  const int* v = mesh.face(f);
+  return polygon_normal(mesh.positions, std::vector<int>(mesh.face(f), mesh.face(f) + mesh.face_size(f)));
+}
+
+Eigen::Vector3d polygon_normal(const std::vector<Eigen::Vector3d>& positions, const std::vector<int>& polygon) {
+  const size_t k = polygon.size();
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
-  for (int i = 0; i < k; ++i) n += mesh.positions[v[i]].cross(mesh.positions[v[(i + 1) % k]]);
+  for (size_t i = 0; i < k; ++i) n += positions[polygon[i]].cross(positions[polygon[(i + 1) % k]]);
   const double len = n.norm();
   return len > 0 ? Eigen::Vector3d(n / len) : Eigen::Vector3d::Zero();
+}
+
+std::unordered_map<long long, int> directed_face_map(const std::vector<std::vector<int>>& faces) {
+  std::unordered_map<long long, int> d;
+  for (int f = 0; f < static_cast<int>(faces.size()); ++f) {
+    const auto& p = faces[f];
+    for (size_t i = 0; i < p.size(); ++i)
+      d[(static_cast<long long>(p[i]) << 32) | static_cast<unsigned int>(p[(i + 1) % p.size()])] = f;
+  }
+  return d;
 }
 
 }  // namespace nfield::remesh

@@ -13,17 +13,6 @@ namespace {
 
 inline long long edge_key(int a, int b) { return undirected_edge_key(a, b); }
 
-/// For each directed edge, the face containing it.
-std::unordered_map<long long, int> directed_faces(const std::vector<std::vector<int>>& faces) {
-  std::unordered_map<long long, int> d;
-  for (int f = 0; f < static_cast<int>(faces.size()); ++f) {
-    const auto& p = faces[f];
-    for (size_t i = 0; i < p.size(); ++i)
-      d[(static_cast<long long>(p[i]) << 32) | static_cast<unsigned int>(p[(i + 1) % p.size()])] = f;
-  }
-  return d;
-}
-
 /// Removes interior doublets (valence-2 vertices: two faces that share both edges of a vertex cannot both
 /// be unfolded there on a smooth surface), repeatedly, since removing one lowers its neighbours' valences.
 /// Feature corners stay (the tip of a wedge is two faces meeting at a valence-2 corner) unless their two
@@ -37,7 +26,7 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std:
     set_faces(mesh, faces);
     faces = face_lists(mesh);
     const VertexValence vv = vertex_valences(mesh);
-    auto dir = directed_faces(faces);
+    auto dir = directed_face_map(faces);
     for (int v = 0; v < mesh.num_vertices(); ++v) {
       if (vv.valence[v] != 2) continue;
       if (vv.boundary[v]) {
@@ -108,7 +97,7 @@ int remove_doublets(PolygonMesh& mesh, const std::vector<char>& kind, const std:
 
 int split_cone_vertices(PolygonMesh& mesh, std::vector<char>& kind) {
   std::vector<std::vector<int>> faces = face_lists(mesh);
-  auto dir = directed_faces(faces);
+  auto dir = directed_face_map(faces);
   const VertexValence vv = vertex_valences(mesh);
   auto face_of = [&](int a, int b) {  // the face containing a -> b
     auto it = dir.find((static_cast<long long>(a) << 32) | static_cast<unsigned int>(b));
@@ -180,7 +169,7 @@ int split_cone_vertices(PolygonMesh& mesh, std::vector<char>& kind) {
 
 int merge_cone_vertices(PolygonMesh& mesh, const std::vector<char>& kind) {
   std::vector<std::vector<int>> faces = face_lists(mesh);
-  auto dir = directed_faces(faces);
+  auto dir = directed_face_map(faces);
   const VertexValence vv = vertex_valences(mesh);
   std::vector<std::vector<int>> neighbours(mesh.num_vertices());
   for (const auto& f : faces)
@@ -245,7 +234,7 @@ int remove_doublets_at(PolygonMesh& mesh, const std::vector<char>& kind, const s
 
 int pair_triangles_through_strips(PolygonMesh& mesh, double min_jacobian, int max_quads) {
   std::vector<std::vector<int>> faces = face_lists(mesh);
-  auto dir = directed_faces(faces);
+  auto dir = directed_face_map(faces);
   std::vector<int> valence = vertex_valences(mesh).valence;
   auto face_across = [&](int u, int v) {  // the face containing v -> u (across the edge u -> v)
     auto it = dir.find((static_cast<long long>(v) << 32) | static_cast<unsigned int>(u));
@@ -343,10 +332,8 @@ double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& 
 
 double polygon_min_jacobian(const std::vector<Vec3>& P, const std::vector<int>& poly, const std::vector<char>& skip) {
   const int k = static_cast<int>(poly.size());
-  Vec3 n = Vec3::Zero();
-  for (int i = 0; i < k; ++i) n += P[poly[i]].cross(P[poly[(i + 1) % k]]);
-  if (n.norm() <= 0) return -1;
-  n.normalize();
+  const Vec3 n = polygon_normal(P, poly);
+  if (n.isZero()) return -1;
   double worst = 1;
   for (int i = 0; i < k; ++i) {
     if (poly[i] < static_cast<int>(skip.size()) && skip[poly[i]]) continue;
@@ -369,7 +356,7 @@ CleanupReport clean_up_quads(PolygonMesh& mesh, std::vector<char>& kind, double 
   {
     const VertexValence vv = vertex_valences(mesh);
     std::vector<int> valence = vv.valence;
-    auto dir = directed_faces(faces);
+    auto dir = directed_face_map(faces);
     struct Candidate {
       double quality;
       int f, g;

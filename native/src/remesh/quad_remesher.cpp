@@ -11,6 +11,7 @@
 #include "nfield/remesh/lattice_offsets.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
+#include "nfield/remesh/irregularity_moves.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
@@ -128,6 +129,25 @@ void accumulate(PureQuadReport& total, const PureQuadReport& r) {
   total.midpoints += r.midpoints;
   total.centres += r.centres;
   total.unpaired = r.unpaired;
+}
+
+/// quad_cleanup's lower_irregularity, then the vertices of the faces it made projected onto the input (the
+/// merged ones sit at a midpoint). Not relaxed: a relaxation here pulls them towards the creases they sit
+/// next to (fandisk: a face across a concave crease, Hausdorff 0.30 -> 0.39%); step 10 evens them out along
+/// the field. Returns the number of moves.
+int lower_irregularity_and_project(PolygonMesh& mesh, std::vector<char>& kind, const ProjectionTargets& targets) {
+  std::vector<char> changed;
+  const int moves = lower_irregularity(mesh, kind, 0.2, 8, &changed);
+  if (!moves) return 0;
+  const std::vector<int> old = compact_vertices(mesh);
+  std::vector<char> compact_kind(old.size());
+  for (size_t i = 0; i < old.size(); ++i) compact_kind[i] = kind[old[i]];
+  kind = std::move(compact_kind);
+  const std::vector<Vec3> kept = mesh.positions;
+  project_vertices(mesh, kind, targets);
+  for (size_t i = 0; i < old.size(); ++i)
+    if (!changed[old[i]]) mesh.positions[i] = kept[i];
+  return moves;
 }
 
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
@@ -335,6 +355,9 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   result.cleanup = cleanup;
   result.cleanup_split_faces = split_large_faces(result.mesh, result.vertex_feature_kind, targets);
   relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
+  // Cones left as clusters of irregular vertices (some made by the large-face splits) are mended on the
+  // relaxed mesh, whose corners are fair enough to judge the moves by.
+  result.cleanup.lowered_irregularity = lower_irregularity_and_project(result.mesh, result.vertex_feature_kind, targets);
   report(0.95);
 
   // 7. Pure quads.
@@ -358,6 +381,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
         for (int i = 0; i < k; ++i) movable[fv[i]] = 1;
       }
       relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations, &movable);
+      result.cleanup.lowered_irregularity += lower_irregularity_and_project(result.mesh, result.vertex_feature_kind, targets);
       if (round == 2) break;
       const std::vector<double> jac = scaled_jacobians_on(result.mesh, targets);
       if (std::none_of(jac.begin(), jac.end(), [](double q) { return q <= 0; })) break;

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -99,5 +100,10 @@ Eigen::Vector3d polygon_centroid(const PolygonMesh& mesh, int f);
 
 /// Unit normal of a polygon by Newell's formula (zero for a degenerate polygon); units: none.
 Eigen::Vector3d polygon_normal(const PolygonMesh& mesh, int f);
+/// The same for a polygon given by its vertex list.
+Eigen::Vector3d polygon_normal(const std::vector<Eigen::Vector3d>& positions, const std::vector<int>& polygon);
+
+/// For each directed edge a -> b of the faces (key (a << 32) | b), the face containing it.
+std::unordered_map<long long, int> directed_face_map(const std::vector<std::vector<int>>& faces);
 
 }  // namespace nfield::remesh

@@ -36,6 +36,7 @@ struct CleanupReport {
   int doublets = 0, triangle_pairs = 0, triangle_pentagon_pairs = 0, triangle_strips = 0;
   int split_cones = 0;   ///< valence-6 vertices split beside a triangle (split_cone_vertices)
   int merged_cones = 0;  ///< pairs of valence-3 vertices merged (merge_cone_vertices)
+  int lowered_irregularity = 0;  ///< edge rotations and diagonal collapses (lower_irregularity)
 };
 
 /// Topological clean-up (doublets, triangle pairs, triangle + pentagon). `feature_kind` is updated with
