@@ -42,6 +42,11 @@ struct QuadRemeshOptions {
   int field_relax_iterations = 6;    ///< steps of relaxation along the field before the last step (field_relaxation.hpp)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
   bool cancel_position_singularities = true;  ///< min-cost flow on the integer offsets (position_singularities.hpp)
+  /// Pure quads by pairing only: 1 pins every field singularity to a lattice point (a vertex-centred cone:
+  /// one valence-3 or -5 vertex, no odd face to pair), 0 leaves the cones where the position field puts
+  /// them, -1 (default) makes both and keeps the one with fewer flipped faces, then fewer irregular
+  /// vertices (twice the time).
+  int pure_quad_cones = -1;
 };
 
 struct QuadRemeshResult {
