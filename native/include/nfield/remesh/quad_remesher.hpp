@@ -8,8 +8,10 @@
 //   5. extraction (quad_extraction.hpp): clusters, links, faces; manifold and oriented by construction;
 //   6. clean-up (quad_cleanup.hpp): doublets and triangle pairs merged, vertices relaxed;
 //   7. optional pure quads (pure_quads.hpp): the odd faces paired by paths of faces that are split into
-//      half-width quads along the way, at the target edge length; or (subdivide_for_pure_quads) one
-//      subdivision step of a lattice twice as coarse, new vertices projected onto the input.
+//      half-width quads along the way, at the target edge length (by default steps 4-7 run twice, cones
+//      free and cones pinned to lattice points, and the output with fewer irregular vertices is kept:
+//      pure_quad_cones); or (subdivide_for_pure_quads) one subdivision step of a lattice twice as coarse,
+//      new vertices projected onto the input.
 //
 // Units: edge_length in mesh units; angles in degrees.
 #pragma once
