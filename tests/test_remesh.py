@@ -101,6 +101,60 @@ def test_pure_quads_are_all_quads_and_manifold():
     assert conv["odd_faces"] > 0 and conv["unpaired"] == 0 and st["lattice_spacing"] == pytest.approx(st["edge_length"])
 
 
+def _valences(offsets, indices):
+    edges = set()
+    for i in range(len(offsets) - 1):
+        f = indices[offsets[i]:offsets[i + 1]]
+        for a, b in zip(f, np.roll(f, -1)):
+            edges.add((min(a, b), max(a, b)))
+    valence = np.zeros(max(max(e) for e in edges) + 1, dtype=int)
+    for a, b in edges:
+        valence[a] += 1
+        valence[b] += 1
+    return valence
+
+
+def test_pinned_cones_become_single_valence_3_vertices():
+    """Pure quads by pairing, with the field's cones pinned to lattice points (pure_quad_cones=1): on a
+    closed quad mesh of genus 0 the valences satisfy sum(4 - valence) = 4 chi = 8, so 8 valence-3 vertices
+    and nothing else irregular is the least possible. The sphere's smoothest field has 8 cones of index
+    +1/4; pinned, each becomes one valence-3 vertex on its cone and no odd face is left there, and at 300
+    faces the output is that optimum. Left free (pure_quad_cones=0) the position field puts some of them
+    inside lattice cells (triangles), and pairing those adds vertices of valence 3 and 5 (measured 10
+    irregular vertices). The default tries both and keeps the better one."""
+    V, F = meshgen.icosphere(4)
+    mesh = Mesh(V, F)
+    field = smoothest_field(mesh, 4)
+    cones = mesh.vertices[[v for v, _ in field.singularities]]
+    directions, _ = field_directions(mesh, field)
+    h = math.sqrt(float(mesh.native.total_area) / 300)
+    runs = {}
+    for mode in (0, 1, -1):
+        r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quads=True,
+                                 pure_quad_cones=mode)
+        runs[mode] = r
+        print(mode, dict(r["pure_quads"]))
+    pinned = runs[1]
+    valence = _valences(np.asarray(pinned["face_offsets"]), np.asarray(pinned["face_indices"]))
+    assert pinned["pure_quads"]["pinned_cones"] == 8
+    assert np.all(np.diff(np.asarray(pinned["face_offsets"])) == 4)
+    assert sorted(set(valence.tolist())) == [3, 4] and int(np.sum(valence == 3)) == 8
+    # each valence-3 vertex sits on its own cone: within an edge length (measured 0.1-0.6 h: the designed
+    # singularity is an input vertex, the vertex cross field moves it into one of that vertex's triangles
+    # (one input edge, about 0.4 h here), whose centroid is pinned; then the vertex is relaxed)
+    Vq = np.asarray(pinned["vertices"])[valence == 3]
+    d = np.linalg.norm(cones[:, None] - Vq[None], axis=2)
+    assert np.all(d.min(axis=1) < h) and len(set(d.argmin(axis=1).tolist())) == 8
+    free = _valences(np.asarray(runs[0]["face_offsets"]), np.asarray(runs[0]["face_indices"]))
+    assert runs[0]["pure_quads"]["pinned_cones"] == 0 and int(np.sum(free != 4)) > 8
+    both = runs[-1]["pure_quads"]
+    assert both["irregular_pinned_cones"] == 8 and both["irregular_free_cones"] == int(np.sum(free != 4))
+    assert both["pinned_cones"] == 8 and both["cones_tried"] == 8
+    np.testing.assert_array_equal(runs[-1]["face_indices"], pinned["face_indices"])
+    with pytest.raises(ValueError, match="pure_quad_cones"):
+        native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quad_cones=2)
+
+
 @pytest.mark.parametrize("name", ["fertility.off", "rocker-arm.obj"])
 def test_pure_quads_at_full_resolution_stay_as_close_to_the_input_as_quad_dominant(name):
     """Pure quads by pairing the odd faces keep the quad-dominant lattice (the same spacing): only a few

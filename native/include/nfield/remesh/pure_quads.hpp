@@ -42,6 +42,11 @@ struct PureQuadReport {
   int centres = 0;         ///< vertices added inside faces
   int unpaired = 0;        ///< odd faces left (no other odd face or boundary reachable: cannot happen on a mesh)
   int rounds = 0;          ///< extra rounds (set by the remesher: faces still flipped were split and paired again)
+  // Set by the remesher (QuadRemeshOptions::pure_quad_cones):
+  int pinned_cones = 0;            ///< cones pinned to a lattice point in the output kept (0: cones left free)
+  int cones_tried = 0;             ///< cones pinned in the pinned candidate (both tried; else 0)
+  int irregular_free_cones = -1;   ///< irregular vertices of the candidate with free cones (-1: not made)
+  int irregular_pinned_cones = -1; ///< and with pinned cones
 };
 
 /// Turns `mesh` into quads as above. `feature_kind` grows with the new vertices (kCurve for midpoints of

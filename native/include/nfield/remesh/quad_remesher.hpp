@@ -8,8 +8,10 @@
 //   5. extraction (quad_extraction.hpp): clusters, links, faces; manifold and oriented by construction;
 //   6. clean-up (quad_cleanup.hpp): doublets and triangle pairs merged, vertices relaxed;
 //   7. optional pure quads (pure_quads.hpp): the odd faces paired by paths of faces that are split into
-//      half-width quads along the way, at the target edge length; or (subdivide_for_pure_quads) one
-//      subdivision step of a lattice twice as coarse, new vertices projected onto the input.
+//      half-width quads along the way, at the target edge length (by default steps 4-7 run twice, cones
+//      free and cones pinned to lattice points, and the output with fewer irregular vertices is kept:
+//      pure_quad_cones); or (subdivide_for_pure_quads) one subdivision step of a lattice twice as coarse,
+//      new vertices projected onto the input.
 //
 // Units: edge_length in mesh units; angles in degrees.
 #pragma once
@@ -42,6 +44,11 @@ struct QuadRemeshOptions {
   int field_relax_iterations = 6;    ///< steps of relaxation along the field before the last step (field_relaxation.hpp)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
   bool cancel_position_singularities = true;  ///< min-cost flow on the integer offsets (position_singularities.hpp)
+  /// Pure quads by pairing only: 1 pins every field singularity to a lattice point (a vertex-centred cone:
+  /// one valence-3 or -5 vertex, no odd face to pair), 0 leaves the cones where the position field puts
+  /// them, -1 (default) makes both and keeps the one with fewer flipped faces, then fewer irregular
+  /// vertices (twice the time).
+  int pure_quad_cones = -1;
 };
 
 struct QuadRemeshResult {
