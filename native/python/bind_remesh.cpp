@@ -87,7 +87,8 @@ QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
       {"seed", &O::seed}, {"iterations", &O::iterations}, {"max_face_size", &O::max_face_size},
       {"relax_iterations", &O::relax_iterations},
       {"field_relax_iterations", &O::field_relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
-      {"cancel_position_singularities", &O::cancel_position_singularities}};
+      {"cancel_position_singularities", &O::cancel_position_singularities},
+      {"fit_far_points", &O::fit_far_points}};
   O o;
   for (const auto& [key, value] : kwargs) {
     const std::string name = py::cast<std::string>(key);
@@ -144,13 +145,16 @@ void bind_remesh(py::module_& m) {
     d["pure_quads"] = named("odd_faces", pq.odd_faces, "paths", pq.paths, "boundary_paths", pq.boundary_paths,
                             "merged_ends", pq.merged_ends, "midpoints", pq.midpoints, "centres", pq.centres,
                             "unpaired", pq.unpaired, "rounds", pq.rounds);
+    const FarPointFitReport& fp = r.far_points;
+    d["far_points"] = named("passes", fp.passes, "moves", fp.moves, "farthest_before",
+                            fp.farthest_before, "farthest_after", fp.farthest_after);
     d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
                          "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;
   }, py::arg("mesh"), py::arg("directions"), py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
      "members of QuadRemeshOptions (edge_length, pure_quads, subdivide_for_pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
-     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities; "
+     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, fit_far_points; "
      "see nfield/remesh/quad_remesher.hpp)");
 
   m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,

@@ -23,6 +23,7 @@
 #include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/pure_quads.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
+#include "nfield/remesh/far_point_fit.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 
@@ -42,6 +43,7 @@ struct QuadRemeshOptions {
   int field_relax_iterations = 6;    ///< steps of relaxation along the field before the last step (field_relaxation.hpp)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
   bool cancel_position_singularities = true;  ///< min-cost flow on the integer offsets (position_singularities.hpp)
+  bool fit_far_points = true;        ///< vertices moved onto input points the output misses (far_point_fit.hpp)
 };
 
 struct QuadRemeshResult {
@@ -59,6 +61,7 @@ struct QuadRemeshResult {
   CancellationReport cancellation;        ///< position singularities before / after the flow
   UntangleReport untangle;                ///< flipped faces before / after the last step
   PureQuadReport pure_quads;              ///< the conversion to pure quads at full resolution
+  FarPointFitReport far_points;           ///< vertices moved onto input points the output missed
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
