@@ -147,7 +147,7 @@ void bind_remesh(py::module_& m) {
                             "unpaired", pq.unpaired, "rounds", pq.rounds);
     const FarPointFitReport& fp = r.far_points;
     d["far_points"] = named("passes", fp.passes, "moves", fp.moves, "farthest_before",
-                            fp.farthest_before, "farthest_after", fp.farthest_after);
+                            fp.farthest_before, "farthest_after", fp.farthest_after, "seconds", fp.seconds);
     d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
                          "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;

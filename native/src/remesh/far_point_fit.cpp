@@ -1,6 +1,7 @@
 #include "nfield/remesh/far_point_fit.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -75,6 +76,7 @@ void faces_to_input(const PolygonMesh& mesh, const std::vector<int>& faces, cons
 
 FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
                                  double s, int passes, double threshold) {
+  const auto start = std::chrono::steady_clock::now();
   FarPointFitReport report;
   const std::vector<Vec3>& points = targets.surface.vertices();
   if (points.empty() || mesh.num_faces() == 0 || !(s > 0)) return report;
@@ -245,6 +247,7 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
     report.moves += moved;
     if (moved == 0) break;
   }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
 }
 

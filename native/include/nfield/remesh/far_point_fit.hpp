@@ -30,10 +30,11 @@
 namespace nfield::remesh {
 
 struct FarPointFitReport {
-  int passes = 0;
+  int passes = 0;                ///< passes that looked for moves (each is followed by a measurement)
   int moves = 0;                 ///< accepted moves (a vertex, or a vertex and its neighbours), over all passes
   double farthest_before = 0;    ///< largest input-vertex -> output distance before (mesh units)
   double farthest_after = 0;     ///< and after
+  double seconds = 0;            ///< wall-clock seconds of the step
 };
 
 /// `scale`: the target edge length s (mesh units). `threshold`: fraction of s above which a distance is
