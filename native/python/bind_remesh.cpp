@@ -88,7 +88,8 @@ QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
       {"relax_iterations", &O::relax_iterations},
       {"field_relax_iterations", &O::field_relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
       {"cancel_position_singularities", &O::cancel_position_singularities},
-      {"pure_quad_cones", &O::pure_quad_cones}};
+      {"pure_quad_cones", &O::pure_quad_cones},
+      {"fit_far_points", &O::fit_far_points}};
   O o;
   for (const auto& [key, value] : kwargs) {
     const std::string name = py::cast<std::string>(key);
@@ -148,13 +149,16 @@ void bind_remesh(py::module_& m) {
                             "unpaired", pq.unpaired, "rounds", pq.rounds, "pinned_cones", pq.pinned_cones,
                             "cones_tried", pq.cones_tried, "irregular_free_cones", pq.irregular_free_cones,
                             "irregular_pinned_cones", pq.irregular_pinned_cones);
+    const FarPointFitReport& fp = r.far_points;
+    d["far_points"] = named("passes", fp.passes, "moves", fp.moves, "farthest_before",
+                            fp.farthest_before, "farthest_after", fp.farthest_after, "seconds", fp.seconds);
     d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
                          "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;
   }, py::arg("mesh"), py::arg("directions"), py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
      "members of QuadRemeshOptions (edge_length, pure_quads, subdivide_for_pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
-     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones; "
+     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones, fit_far_points; "
      "see nfield/remesh/quad_remesher.hpp)");
 
   m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,

@@ -262,7 +262,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                 n: int | None = None, pure_quads: bool = False, pure_quad_method: str = "pair",
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
                 seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
-                strict: bool = False, cancel_position_singularities: bool = True,
+                strict: bool = False, cancel_position_singularities: bool = True, fit_far_points: bool = True,
                 progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
@@ -290,6 +290,10 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         field's singularities or with the boundary by a minimum-cost flow on the integer offsets, and
         re-solve the positions (fewer irregular vertices); ``stats["position_singularities"]`` reports
         the counts before and after. False keeps the position field as optimised.
+    fit_far_points : move output vertices onto the input points the output misses by more than a quarter
+        of the edge length (tips of toes and fingers one or two quads thick, rounded edges crossed as a chord),
+        when that brings the output closer to the input on both sides and leaves no face's corner poor;
+        ``stats["far_points"]`` reports the moves and the farthest input vertex before and after.
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
         releases the GIL, so it can run in a worker thread.
     stats : False skips the quality statistics (only the remesher's own report is returned).
@@ -328,6 +332,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     if isinstance(field_relax_iterations, bool) or not isinstance(field_relax_iterations, (int, np.integer)) \
             or not 0 <= int(field_relax_iterations) <= 100:
         raise ValueError(f"field_relax_iterations must be an integer in 0..100, got {field_relax_iterations!r}")
+    if not isinstance(fit_far_points, (bool, np.bool_)):
+        raise ValueError(f"fit_far_points must be True or False, got {fit_far_points!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
@@ -338,7 +344,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                              iterations=int(iterations), relax_iterations=int(relax_iterations),
                              field_relax_iterations=int(field_relax_iterations),
                              refuse_small_components=bool(strict),
-                             cancel_position_singularities=bool(cancel_position_singularities), progress=progress)
+                             cancel_position_singularities=bool(cancel_position_singularities),
+                             fit_far_points=bool(fit_far_points), progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
     faces = _arrays_to_polygons(np.asarray(r["face_offsets"]), np.asarray(r["face_indices"]))
     seconds = time.perf_counter() - t0
@@ -363,6 +370,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "untangle": dict(r["untangle"]),
         "pure_quad_conversion": dict(r["pure_quads"]),
         "position_singularities": dict(r["position_singularities"]),
+        "far_points": dict(r["far_points"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),

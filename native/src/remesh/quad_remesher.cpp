@@ -470,6 +470,10 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.untangle.removed_doublets += before_subdivision.removed_doublets;
     result.untangle.collapsed_edges += before_subdivision.collapsed_edges;
   }
+  // 9. Vertices moved onto the input points the output misses (far_point_fit.hpp): after the untangling, so
+  //    that its guard (no face's worst corner below 0.05 or its own) keeps every face as valid as it was.
+  if (options.fit_far_points)
+    result.far_points = fit_far_points(result.mesh, result.vertex_feature_kind, targets, options.edge_length);
   if (result.untangle.flipped_after)
     result.messages.push_back(std::to_string(result.untangle.flipped_after) +
                               " face(s) are still flipped (a corner turned against the surface): the target is too "

@@ -191,6 +191,10 @@ std::vector<double> scaled_jacobians_on(const PolygonMesh& mesh, const Projectio
   return q;
 }
 
+double worst_corner_on(const PolygonMesh& mesh, int f, const ProjectionTargets& targets) {
+  return face_quality(mesh, f, targets);
+}
+
 int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets, double below) {
   std::vector<std::vector<int>> faces(mesh.num_faces());
   for (int f = 0; f < mesh.num_faces(); ++f) faces[f].assign(mesh.face(f), mesh.face(f) + mesh.face_size(f));

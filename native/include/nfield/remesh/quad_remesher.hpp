@@ -25,6 +25,7 @@
 #include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/pure_quads.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
+#include "nfield/remesh/far_point_fit.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 
@@ -49,6 +50,7 @@ struct QuadRemeshOptions {
   /// them, -1 (default) makes both and keeps the one with fewer flipped faces, then fewer irregular
   /// vertices (twice the time).
   int pure_quad_cones = -1;
+  bool fit_far_points = true;        ///< vertices moved onto input points the output misses (far_point_fit.hpp)
 };
 
 struct QuadRemeshResult {
@@ -66,6 +68,7 @@ struct QuadRemeshResult {
   CancellationReport cancellation;        ///< position singularities before / after the flow
   UntangleReport untangle;                ///< flipped faces before / after the last step
   PureQuadReport pure_quads;              ///< the conversion to pure quads at full resolution
+  FarPointFitReport far_points;           ///< vertices moved onto input points the output missed
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)

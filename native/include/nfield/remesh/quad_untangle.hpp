@@ -51,4 +51,7 @@ int split_flipped_faces(PolygonMesh& mesh, const ProjectionTargets& targets, dou
 /// remesher's own cut surface as the reference).
 std::vector<double> scaled_jacobians_on(const PolygonMesh& mesh, const ProjectionTargets& targets);
 
+/// The same for one face f (-2 for a face with an edge of (nearly) zero length).
+double worst_corner_on(const PolygonMesh& mesh, int f, const ProjectionTargets& targets);
+
 }  // namespace nfield::remesh

@@ -1,0 +1,46 @@
+// Fitting the output to the input where it is farthest from it: thin tips (toes, claws, fingers) that the
+// lattice cuts off at one or two quads across, rounded edges that its faces cross as chords, faces that
+// bulge away from the surface.
+//
+// The lattice has one spacing s everywhere, so where the input turns within about a quad (the tip of a toe
+// one quad thick) no lattice point lies on the far end and the output ends short of it; the Hausdorff
+// distance of a whole result is such one spot. Each pass lists what is farther than `threshold` s:
+// vertices of the projection surface far from the (fan-triangulated) output (the output should reach
+// them: a nearby output vertex moves towards the point), and output faces whose farthest sample (the
+// samples of quad_stats.hpp) is far from the input (its vertices move by that sample's offset to the
+// input). Farthest first, each tries up to four vertices not on a feature (those stay on their curve),
+// moved all, half or a quarter of the way and projected onto the input, alone or with their face
+// neighbours following by half of the move. Measured on the vertex's 2-ring of faces L (input points whose
+// nearest output face is in L, by their distance to L; samples of the faces that move, by their distance
+// to the input), a move is kept when
+//   - it lowers the sum of squared excesses over threshold s of both sides by at least 2%,
+//   - no input point of L ends farther than the farthest was, and no sample farther than its farthest or
+//     threshold s (neither side of the Hausdorff distance grows),
+//   - no face gets a worst corner (scaled Jacobian, quad_untangle.hpp) below 0.05, or below its own before
+//     if that was lower (it runs after the untangling step, so no face flips).
+// Of the moves that qualify, the smallest whose gain is at least 80% of the best one's is made (every move
+// bends the rows near it). Points not served by L keep their nearest output triangle, so no input point
+// gets farther; after a move its faces' 2-ring waits for the next pass (the distances were measured before).
+#pragma once
+#include <vector>
+
+#include "nfield/remesh/polygon_mesh.hpp"
+#include "nfield/remesh/quad_extraction.hpp"
+
+namespace nfield::remesh {
+
+struct FarPointFitReport {
+  int passes = 0;                ///< passes that looked for moves (each is followed by a measurement)
+  int moves = 0;                 ///< accepted moves (a vertex, or a vertex and its neighbours), over all passes
+  double farthest_before = 0;    ///< largest input-vertex -> output distance before (mesh units)
+  double farthest_after = 0;     ///< and after
+  double seconds = 0;            ///< wall-clock seconds of the step
+};
+
+/// `scale`: the target edge length s (mesh units). `threshold`: fraction of s above which a distance is
+/// worked on. Only vertices of kind kNoFeature move. At most `passes` passes (fewer when one moves nothing).
+FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& feature_kind,
+                                 const ProjectionTargets& targets, double scale, int passes = 3,
+                                 double threshold = 0.4);
+
+}  // namespace nfield::remesh

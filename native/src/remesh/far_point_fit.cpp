@@ -1,0 +1,254 @@
+#include "nfield/remesh/far_point_fit.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "nfield/remesh/quad_untangle.hpp"
+#include "nfield/remesh/remesh_surface.hpp"
+
+namespace nfield::remesh {
+
+namespace {
+
+/// Moves must not take a face's worst corner below this, unless it was lower before. Below the relaxation's
+/// 0.2: a quad wrapped round a tip has a poor corner wherever its vertices are, so 0.2 blocks the tips; 0.05
+/// is the worst corner the untangling step leaves on the benchmark meshes.
+constexpr double kFloor = 0.05;
+/// A move must lower the local sum of squared excesses by at least this fraction (no churn on ties).
+constexpr double kGain = 0.02;
+/// Input points nearest to one output face tried before that face is given up for the pass.
+constexpr int kAttempts = 8;
+/// Of the moves that help, the smallest whose gain is at least this fraction of the best one's is made.
+constexpr double kNearlyBest = 0.8;
+
+double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  return (p - closest_point_on_triangle(p, a, b, c)).norm();
+}
+
+/// Distance from p to the fan triangulation of the faces `faces`.
+double distance_to_faces(const PolygonMesh& mesh, const std::vector<int>& faces, const Vec3& p) {
+  double best = std::numeric_limits<double>::infinity();
+  for (int f : faces) {
+    const int* v = mesh.face(f);
+    for (int i = 1; i + 1 < mesh.face_size(f); ++i)
+      best = std::min(best, point_triangle_distance(p, mesh.positions[v[0]], mesh.positions[v[i]], mesh.positions[v[i + 1]]));
+  }
+  return best;
+}
+
+/// Local distance measure: the largest distance and the sum of squared excesses over `tolerance`.
+struct Excess {
+  double worst = 0, energy = 0;
+  void add(double d, double tolerance) {
+    worst = std::max(worst, d);
+    if (d > tolerance) energy += (d - tolerance) * (d - tolerance);
+  }
+};
+
+/// The points of face f where quad_stats.hpp samples the distance (vertices, centroid, edge midpoints, half
+/// way from the vertices to the centroid).
+std::vector<Vec3> face_samples(const PolygonMesh& mesh, int f) {
+  const int k = mesh.face_size(f);
+  const int* v = mesh.face(f);
+  Vec3 c = Vec3::Zero();
+  for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
+  c /= k;
+  std::vector<Vec3> out{c};
+  for (int i = 0; i < k; ++i) {
+    out.push_back(mesh.positions[v[i]]);
+    out.push_back(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));
+    out.push_back(0.5 * (mesh.positions[v[i]] + c));
+  }
+  return out;
+}
+
+/// Adds the distances to the input of the samples of `faces` quad_stats.hpp measures (vertices, centroid,
+/// edge midpoints, half way from the vertices to the centroid).
+void faces_to_input(const PolygonMesh& mesh, const std::vector<int>& faces, const TriangleTree& input, double tolerance,
+                    Excess& e) {
+  for (int f : faces)
+    for (const Vec3& p : face_samples(mesh, f)) e.add(std::sqrt(input.closest(p).squared_distance), tolerance);
+}
+
+}  // namespace
+
+FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
+                                 double s, int passes, double threshold) {
+  const auto start = std::chrono::steady_clock::now();
+  FarPointFitReport report;
+  const std::vector<Vec3>& points = targets.surface.vertices();
+  if (points.empty() || mesh.num_faces() == 0 || !(s > 0)) return report;
+  std::vector<double> distance(points.size());
+  std::vector<int> nearest_face(points.size());
+  for (int pass = 0; pass <= passes; ++pass) {
+    // Distances of the input vertices to the output, and the output face each is nearest to.
+    const auto tris = fan_triangulate(mesh);
+    std::vector<int> tri_face;
+    tri_face.reserve(tris.size());
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      for (int i = 1; i + 1 < mesh.face_size(f); ++i) tri_face.push_back(f);
+    const TriangleTree out(mesh.positions, tris);
+    double farthest = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const auto hit = out.closest(points[i]);
+      distance[i] = std::sqrt(hit.squared_distance);
+      nearest_face[i] = hit.triangle >= 0 ? tri_face[hit.triangle] : -1;
+      farthest = std::max(farthest, distance[i]);
+    }
+    if (pass == 0) report.farthest_before = farthest;
+    report.farthest_after = farthest;
+    if (pass == passes) break;
+    ++report.passes;
+
+    std::vector<std::vector<int>> served_by(mesh.num_faces());  // input points nearest to each face
+    for (int i = 0; i < static_cast<int>(points.size()); ++i)
+      if (nearest_face[i] >= 0) served_by[nearest_face[i]].push_back(i);
+    std::vector<std::vector<int>> vertex_faces(mesh.num_vertices());
+    for (int f = 0; f < mesh.num_faces(); ++f)
+      for (int i = 0; i < mesh.face_size(f); ++i) vertex_faces[mesh.face(f)[i]].push_back(f);
+    auto faces_around = [&](const std::vector<int>& vertices) {  // faces with a vertex in `vertices`
+      std::vector<int> out_faces;
+      for (int v : vertices) out_faces.insert(out_faces.end(), vertex_faces[v].begin(), vertex_faces[v].end());
+      std::sort(out_faces.begin(), out_faces.end());
+      out_faces.erase(std::unique(out_faces.begin(), out_faces.end()), out_faces.end());
+      return out_faces;
+    };
+    auto vertices_of = [&](const std::vector<int>& faces) {
+      std::vector<int> out_vertices;
+      for (int f : faces) out_vertices.insert(out_vertices.end(), mesh.face(f), mesh.face(f) + mesh.face_size(f));
+      std::sort(out_vertices.begin(), out_vertices.end());
+      out_vertices.erase(std::unique(out_vertices.begin(), out_vertices.end()), out_vertices.end());
+      return out_vertices;
+    };
+
+    // What is far: input points from the output (the output should reach them: a vertex moves towards the
+    // point), and output faces from the input (the face's worst sample should come back: its vertices move
+    // by the sample's offset to its nearest input point).
+    struct Far {
+      double distance;
+      int face;        ///< output face nearest to it / the face itself
+      bool toward;     ///< true: move towards `to`; false: move by to - from
+      Vec3 from, to;
+    };
+    std::vector<Far> order;
+    for (int i = 0; i < static_cast<int>(points.size()); ++i)
+      if (distance[i] > threshold * s && nearest_face[i] >= 0)
+        order.push_back({distance[i], nearest_face[i], true, points[i], points[i]});
+    for (int f = 0; f < mesh.num_faces(); ++f) {
+      Far worst{0, f, false, Vec3::Zero(), Vec3::Zero()};
+      for (const Vec3& y : face_samples(mesh, f)) {
+        const auto hit = targets.surface.closest(y);
+        const double d = std::sqrt(hit.squared_distance);
+        if (hit.triangle >= 0 && d > worst.distance) worst.distance = d, worst.from = y, worst.to = hit.point;
+      }
+      if (worst.distance > threshold * s) order.push_back(worst);
+    }
+    std::sort(order.begin(), order.end(), [&](const Far& a, const Far& b) { return a.distance > b.distance; });
+    std::vector<char> dirty(mesh.num_faces(), 0);
+    std::vector<int> tried(mesh.num_faces(), 0);  // farther points near this face that found no move
+    int moved = 0;
+    for (const Far& item : order) {
+      const Vec3& x = item.to;
+      if (dirty[item.face] || tried[item.face] >= kAttempts) continue;
+      // Candidate vertices: those of the faces around the nearest face, nearest to x first.
+      // (for a far face, its own vertices, nearest to its far sample first).
+      std::vector<int> cands =
+          item.toward ? vertices_of(faces_around(vertices_of({item.face}))) : vertices_of({item.face});
+      const Vec3& near = item.toward ? x : item.from;
+      cands.erase(std::remove_if(cands.begin(), cands.end(), [&](int v) { return kind[v] != kNoFeature; }), cands.end());
+      std::sort(cands.begin(), cands.end(), [&](int a, int b) {
+        return (mesh.positions[a] - near).squaredNorm() < (mesh.positions[b] - near).squaredNorm();
+      });
+      if (cands.size() > 4) cands.resize(4);
+      struct Option {
+        double gain, displacement;
+        std::vector<std::pair<int, Vec3>> moves;
+      };
+      std::vector<Option> options;
+      for (int v : cands) {
+        // The vertex moves towards x; its neighbours (not on a feature) follow by `follow` of its move.
+        std::vector<int> group = vertices_of(vertex_faces[v]);
+        group.erase(std::remove_if(group.begin(), group.end(), [&](int u) { return kind[u] != kNoFeature; }), group.end());
+        const std::vector<int> own = faces_around(group);        // faces that change
+        const std::vector<int> ring = faces_around(vertices_of(own));  // and their neighbours
+        if (std::any_of(ring.begin(), ring.end(), [&](int f) { return dirty[f]; })) continue;
+        // Input points the ring serves (their nearest output face is in it).
+        const Vec3 old = mesh.positions[v];
+        const Vec3 reach = item.toward ? Vec3(x - old) : Vec3(item.to - item.from);  // the full move
+        std::vector<int> served;
+        for (int f : ring) served.insert(served.end(), served_by[f].begin(), served_by[f].end());
+        auto local_j = [&]() {  // (input -> output, output -> input)
+          std::pair<Excess, Excess> e;
+          for (int p : served) e.first.add(distance_to_faces(mesh, ring, points[p]), threshold * s);
+          faces_to_input(mesh, own, targets.surface, threshold * s, e.second);
+          return e;
+        };
+        std::vector<double> quality_before(own.size());
+        for (std::size_t k = 0; k < own.size(); ++k) quality_before[k] = worst_corner_on(mesh, own[k], targets);
+        // No face may get a worst corner below kFloor, or below its own before if that was lower.
+        auto corners_kept = [&]() {
+          for (std::size_t k = 0; k < own.size(); ++k)
+            if (worst_corner_on(mesh, own[k], targets) < std::min(kFloor, quality_before[k])) return false;
+          return true;
+        };
+        std::vector<Vec3> saved(group.size());
+        for (std::size_t k = 0; k < group.size(); ++k) saved[k] = mesh.positions[group[k]];
+        const auto [in_before, out_before] = local_j();
+        for (const double follow : {0.0, 0.5}) {
+          for (const double t : {1.0, 0.5, 0.25}) {  // all, a half or a quarter of the way
+            const auto hit = targets.surface.closest(old + t * reach);
+            if (hit.triangle < 0) continue;
+            const Vec3 step = hit.point - old;
+            std::vector<std::pair<int, Vec3>> moves;
+            for (int u : group) {
+              if (u == v) {
+                moves.emplace_back(u, hit.point);
+              } else if (follow > 0) {
+                const auto h = targets.surface.closest(mesh.positions[u] + follow * step);
+                if (h.triangle >= 0) moves.emplace_back(u, h.point);
+              }
+            }
+            std::vector<Vec3> was(moves.size());
+            for (std::size_t k = 0; k < moves.size(); ++k) was[k] = mesh.positions[moves[k].first];
+            for (const auto& [u, p] : moves) mesh.positions[u] = p;
+            if (corners_kept()) {
+              const auto [in_after, out_after] = local_j();
+              const double gain = in_before.energy + out_before.energy - in_after.energy - out_after.energy;
+              double displacement = 0;
+              for (std::size_t k = 0; k < moves.size(); ++k) displacement += (moves[k].second - was[k]).norm();
+              // Neither side may get a new worst point: the input side none above its old worst, the output side
+              // none above its old worst or the tolerance.
+              if (in_after.worst <= in_before.worst &&
+                  out_after.worst <= std::max(out_before.worst, threshold * s) &&
+                  gain > kGain * (in_before.energy + out_before.energy)) options.push_back({gain, displacement, moves});
+            }
+            for (std::size_t k = 0; k < group.size(); ++k) mesh.positions[group[k]] = saved[k];
+          }
+        }
+      }
+      if (options.empty()) {
+        ++tried[item.face];
+        continue;
+      }
+      // The smallest move that gains nearly as much as the best (each move bends the rows near it).
+      double best_gain = 0;
+      for (const Option& o : options) best_gain = std::max(best_gain, o.gain);
+      const Option* chosen = nullptr;
+      for (const Option& o : options)
+        if (o.gain >= kNearlyBest * best_gain && (!chosen || o.displacement < chosen->displacement)) chosen = &o;
+      const auto& best_moves = chosen->moves;
+      std::vector<int> touched;
+      for (const auto& [u, p] : best_moves) mesh.positions[u] = p, touched.push_back(u);
+      for (int f : faces_around(vertices_of(faces_around(touched)))) dirty[f] = 1;
+      ++moved;
+    }
+    report.moves += moved;
+    if (moved == 0) break;
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return report;
+}
+
+}  // namespace nfield::remesh
