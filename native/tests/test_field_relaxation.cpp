@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "check.hpp"
+#include "plane_grid.hpp"
 #include "nfield/mesh.hpp"
 #include "nfield/remesh/field_relaxation.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
@@ -19,24 +20,7 @@ namespace {
 
 constexpr int kN = 12;  // kN x kN unit cells on [0, kN]^2, z = 0
 
-int grid_vertex(int i, int j) { return j * (kN + 1) + i; }
-
-/// The flat input surface (two triangles per cell) and its projection targets (boundary kept as feature).
-ProjectionTargets plane_targets() {
-  Positions P((kN + 1) * (kN + 1), 3);
-  for (int j = 0; j <= kN; ++j)
-    for (int i = 0; i <= kN; ++i) P.row(grid_vertex(i, j)) << i, j, 0;
-  Triangles T(2 * kN * kN, 3);
-  int t = 0;
-  for (int j = 0; j < kN; ++j)
-    for (int i = 0; i < kN; ++i) {
-      T.row(t++) << grid_vertex(i, j), grid_vertex(i + 1, j), grid_vertex(i + 1, j + 1);
-      T.row(t++) << grid_vertex(i, j), grid_vertex(i + 1, j + 1), grid_vertex(i, j + 1);
-    }
-  const RemeshSurface surface = make_remesh_surface(TriangleMesh(P, T));
-  const Features features = detect_features(surface, true, 0, 1.0);
-  return make_projection_targets(surface, features);
-}
+int grid_vertex(int i, int j) { return plane_grid_vertex(kN, i, j); }
 
 /// The quad grid, vertices at least two cells from the boundary moved by a fixed pseudo-random offset of
 /// up to 0.2 cells in each coordinate (every corner stays convex). Boundary vertices are features.
@@ -66,7 +50,7 @@ PolygonMesh jittered_grid(std::vector<char>& kind) {
 }  // namespace
 
 int main() {
-  const ProjectionTargets targets = plane_targets();
+  const ProjectionTargets targets = plane_targets(kN);
   const std::vector<Eigen::Vector3d> along_x(2 * kN * kN, Eigen::Vector3d::UnitX());
 
   run("the solve straightens a jittered lattice along the field, features fixed, nothing folds", [&] {
