@@ -162,20 +162,23 @@ void solve_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const P
     const double deviation_allowed = kDeviationShare * *std::max_element(deviation_before.begin(), deviation_before.end());
     // Free vertices: on an edge, not on a face with a feature vertex (next to a crease a move along the field
     // can fold a face over it), not on a face already poor (worst corner below kFloor: those are the
-    // untangling step's) nor on a face next to one.
+    // untangling step's), nor on a face next to a flipped one.
     std::vector<char> free(V, 0);
     for (const auto& e : edges) free[e[0]] = free[e[1]] = 1;
     for (int f = 0; f < mesh.num_faces(); ++f)
       if (std::any_of(mesh.face(f), mesh.face(f) + mesh.face_size(f), [&](int v) { return kind[v] != kNoFeature; }))
         for (int i = 0; i < mesh.face_size(f); ++i) free[mesh.face(f)[i]] = 0;
-    std::vector<char> poor(V, 0);
+    std::vector<char> flipped(V, 0);
+    for (int f = 0; f < mesh.num_faces(); ++f) {
+      if (worst_before[f] >= kFloor) continue;
+      for (int i = 0; i < mesh.face_size(f); ++i) free[mesh.face(f)[i]] = 0;
+      if (worst_before[f] <= 0)
+        for (int i = 0; i < mesh.face_size(f); ++i) flipped[mesh.face(f)[i]] = 1;
+    }
+    // The faces around a flipped face stay too: the untangling step moves their vertices as well, from where
+    // the mesh had them.
     for (int f = 0; f < mesh.num_faces(); ++f)
-      if (worst_before[f] < kFloor)
-        for (int i = 0; i < mesh.face_size(f); ++i) poor[mesh.face(f)[i]] = 1;
-    // The faces around a poor face stay too: the untangling step moves their vertices as well, from where the
-    // mesh had them.
-    for (int f = 0; f < mesh.num_faces(); ++f)
-      if (std::any_of(mesh.face(f), mesh.face(f) + mesh.face_size(f), [&](int v) { return poor[v] != 0; }))
+      if (std::any_of(mesh.face(f), mesh.face(f) + mesh.face_size(f), [&](int v) { return flipped[v] != 0; }))
         for (int i = 0; i < mesh.face_size(f); ++i) free[mesh.face(f)[i]] = 0;
     // Two unknowns per free vertex: its displacement in the tangent plane of the input at it (frame b1, b2).
     std::vector<int> index(V, -1);

@@ -16,7 +16,8 @@
 // capped at s/2, the vertices projected back onto the input, the axes and weights taken again: up to 3
 // outer iterations. Vertices of faces touching a feature vertex stay (next to a crease a move along the field
 // can fold a face over it), as do the vertices of faces whose worst corner (scaled Jacobian against the
-// input's normal, quad_untangle.hpp) is below 0.2 (they are the untangling step's). Guarded: a vertex whose
+// input's normal, quad_untangle.hpp) is below 0.2 (they are the untangling step's) and of faces next to a
+// flipped one (the untangling step moves those too, from where they were). Guarded: a vertex whose
 // input normal turned by more than 30 degrees goes back; the vertices of a face whose worst corner falls below
 // 0.2, or that leaves the input by more than 0.7 times the largest distance of any face before (or its own
 // distance, if larger), take half their step, down to an eighth, then none.
