@@ -177,16 +177,17 @@ def test_pure_quads_at_full_resolution_stay_as_close_to_the_input_as_quad_domina
 
 @pytest.mark.parametrize("name", ["fertility.off", "rocker-arm.obj"])
 def test_relaxation_along_the_field_aligns_the_edges_better(name):
-    """The relaxation along the field moves each vertex by the mean off-axis part of its edges (measured with
-    the field at each edge's midpoint, as the alignment statistic is): it lowers the mean edge alignment
-    (measured at 1,500 faces: 3.41 -> 3.16 deg on fertility, 3.94 -> 3.69 on the rocker arm; 0.1 deg is
-    well inside both gains) and flips nothing (guarded by the corner Jacobians)."""
+    """The relaxation along the field (a global least-squares solve of the vertices' tangent moves, then
+    local steps; the off-axis parts measured with the field at each edge's midpoint, as the alignment
+    statistic is) lowers the mean edge alignment: at 1,500 faces 3.41 -> 2.31 deg on fertility, 3.94 -> 2.66
+    on the rocker arm. The local steps alone gained 0.25 deg on both, so a gain of 0.6 deg needs the solve.
+    It flips nothing (guarded by the corner Jacobians)."""
     mesh = core_mesh(name)
     field = solve(mesh, n=4, order=2, align="curvature-max")
     plain = quad_remesh(mesh, field, target_faces=1500, field_relax_iterations=0).stats
     relaxed = quad_remesh(mesh, field, target_faces=1500).stats
     print(name, plain["alignment_mean_deg"], relaxed["alignment_mean_deg"])
-    assert relaxed["alignment_mean_deg"] < plain["alignment_mean_deg"] - 0.1
+    assert relaxed["alignment_mean_deg"] < plain["alignment_mean_deg"] - 0.6
     assert relaxed["inverted_faces"] == 0
     with pytest.raises(ValueError, match="field_relax_iterations"):
         quad_remesh(mesh, field, target_faces=1500, field_relax_iterations=-1)

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "check.hpp"
+#include "plane_grid.hpp"
 #include "nfield/mesh.hpp"
 #include "nfield/remesh/pure_quads.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
@@ -20,24 +21,7 @@ namespace {
 
 constexpr int kN = 8;  // the grid has kN x kN unit cells on [0, kN]^2, z = 0
 
-int grid_vertex(int i, int j) { return j * (kN + 1) + i; }
-
-/// The flat input surface (two triangles per cell) and its projection targets (boundary kept as feature).
-ProjectionTargets plane_targets() {
-  Positions P((kN + 1) * (kN + 1), 3);
-  for (int j = 0; j <= kN; ++j)
-    for (int i = 0; i <= kN; ++i) P.row(grid_vertex(i, j)) << i, j, 0;
-  Triangles T(2 * kN * kN, 3);
-  int t = 0;
-  for (int j = 0; j < kN; ++j)
-    for (int i = 0; i < kN; ++i) {
-      T.row(t++) << grid_vertex(i, j), grid_vertex(i + 1, j), grid_vertex(i + 1, j + 1);
-      T.row(t++) << grid_vertex(i, j), grid_vertex(i + 1, j + 1), grid_vertex(i, j + 1);
-    }
-  const RemeshSurface surface = make_remesh_surface(TriangleMesh(P, T));
-  const Features features = detect_features(surface, true, 0, 1.0);
-  return make_projection_targets(surface, features);
-}
+int grid_vertex(int i, int j) { return plane_grid_vertex(kN, i, j); }
 
 /// The quad grid with the cells in `split` cut along their diagonal into two triangles.
 PolygonMesh grid_with_triangles(const std::set<std::pair<int, int>>& split, std::vector<char>& kind) {
@@ -95,7 +79,7 @@ void check_all_quads_valid(const PolygonMesh& m, long long chi) {
 }  // namespace
 
 int main() {
-  const ProjectionTargets targets = plane_targets();
+  const ProjectionTargets targets = plane_targets(kN);
 
   run("a cell cut into two triangles is merged back (the cheapest path: one step)", [&] {
     std::vector<char> kind;
