@@ -69,8 +69,8 @@ std::vector<std::array<int, 3>> to_reference_triangles(const IndexArray& a, int 
 }
 
 py::dict extraction_dict(const ExtractionReport& r) {
-  return named("clusters", r.clusters, "links", r.links, "merged_short_links", r.merged_short_links, "split_clusters", r.split_clusters,
-               "removed_dangling", r.removed_dangling, "split_faces", r.split_faces, "dropped_large_faces",
+  return named("clusters", r.clusters, "links", r.links, "merged_short_links", r.merged_short_links,
+               "split_clusters", r.split_clusters, "removed_dangling", r.removed_dangling, "split_faces", r.split_faces, "dropped_large_faces",
                r.dropped_large_faces, "open_walks", r.open_walks, "removed_conflicting", r.removed_conflicting,
                "dropped_scraps", r.dropped_scraps, "split_vertices", r.split_vertices);
 }
@@ -158,7 +158,8 @@ void bind_remesh(py::module_& m) {
   }, py::arg("mesh"), py::arg("directions"), py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
      "members of QuadRemeshOptions (edge_length, pure_quads, subdivide_for_pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
-     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones, fit_far_points, split_thin_clusters; "
+     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones, fit_far_points, "
+     "split_thin_clusters; "
      "see nfield/remesh/quad_remesher.hpp)");
 
   m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,
