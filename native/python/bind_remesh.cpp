@@ -70,7 +70,7 @@ std::vector<std::array<int, 3>> to_reference_triangles(const IndexArray& a, int 
 
 py::dict extraction_dict(const ExtractionReport& r) {
   return named("clusters", r.clusters, "links", r.links, "merged_short_links", r.merged_short_links,
-               "removed_dangling", r.removed_dangling, "split_faces", r.split_faces, "dropped_large_faces",
+               "split_clusters", r.split_clusters, "removed_dangling", r.removed_dangling, "split_faces", r.split_faces, "dropped_large_faces",
                r.dropped_large_faces, "open_walks", r.open_walks, "removed_conflicting", r.removed_conflicting,
                "dropped_scraps", r.dropped_scraps, "split_vertices", r.split_vertices);
 }
@@ -89,7 +89,7 @@ QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
       {"field_relax_iterations", &O::field_relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
       {"cancel_position_singularities", &O::cancel_position_singularities},
       {"pure_quad_cones", &O::pure_quad_cones},
-      {"fit_far_points", &O::fit_far_points}};
+      {"fit_far_points", &O::fit_far_points}, {"split_thin_clusters", &O::split_thin_clusters}};
   O o;
   for (const auto& [key, value] : kwargs) {
     const std::string name = py::cast<std::string>(key);
@@ -158,7 +158,8 @@ void bind_remesh(py::module_& m) {
   }, py::arg("mesh"), py::arg("directions"), py::arg("progress") = py::none(),
      "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
      "members of QuadRemeshOptions (edge_length, pure_quads, subdivide_for_pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
-     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones, fit_far_points; "
+     "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones, fit_far_points, "
+     "split_thin_clusters; "
      "see nfield/remesh/quad_remesher.hpp)");
 
   m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,

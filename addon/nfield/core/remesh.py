@@ -263,7 +263,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
                 seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
                 strict: bool = False, cancel_position_singularities: bool = True, fit_far_points: bool = True,
-                progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
+                split_thin_clusters: bool = True, progress: Callable[[float], Any] | None = None,
+                stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
     field : FieldResult, DesignSession, or per-face array (see :func:`field_directions`); n = 4 is used as
@@ -295,6 +296,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         of the edge length (tips of toes and fingers one or two quads thick, rounded edges crossed as a chord),
         when that brings the output closer to the input on both sides and leaves no face's corner poor;
         ``stats["far_points"]`` reports the moves and the farthest input vertex before and after.
+    split_thin_clusters : split an output vertex whose surface points wrap round a part thinner than a
+        lattice cell (a finger, a claw) into one vertex per side, so that its edges do not cut through the part;
+        ``stats["extraction"]["split_clusters"]`` counts them.
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
         releases the GIL, so it can run in a worker thread.
     stats : False skips the quality statistics (only the remesher's own report is returned).
@@ -335,6 +339,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"field_relax_iterations must be an integer in 0..100, got {field_relax_iterations!r}")
     if not isinstance(fit_far_points, (bool, np.bool_)):
         raise ValueError(f"fit_far_points must be True or False, got {fit_far_points!r}")
+    if not isinstance(split_thin_clusters, (bool, np.bool_)):
+        raise ValueError(f"split_thin_clusters must be True or False, got {split_thin_clusters!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
@@ -346,7 +352,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                              field_relax_iterations=int(field_relax_iterations),
                              refuse_small_components=bool(strict),
                              cancel_position_singularities=bool(cancel_position_singularities),
-                             fit_far_points=bool(fit_far_points), progress=progress)
+                             fit_far_points=bool(fit_far_points),
+                             split_thin_clusters=bool(split_thin_clusters), progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
     faces = _arrays_to_polygons(np.asarray(r["face_offsets"]), np.asarray(r["face_indices"]))
     seconds = time.perf_counter() - t0

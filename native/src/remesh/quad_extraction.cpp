@@ -32,6 +32,94 @@ void split_walk(const std::vector<int>& walk, std::vector<std::vector<int>>& loo
   if (stack.size() >= 3) loops.push_back(stack);
 }
 
+/// Splits the clusters that wrap round a part thinner than a lattice cell (a finger or claw whose surface
+/// points all fall on one lattice point): projected, such a cluster's vertex lands on one sheet, and its
+/// edges to the neighbours on the other sheets cut through the part (armadillo at 5,000 faces: a valence-12
+/// vertex on a finger, edges 0.9% of the diagonal off the surface). A cluster is split when one of its
+/// members' normals points against the cluster's mean normal (cosine below kStraddle), its lattice point
+/// lies kOffSurface scale or more off the surface (the members wrap round the part, so their common point
+/// sits inside it; on a plate's rim the split only added irregular vertices) and it has no feature member:
+/// two seeds, that member and the member whose normal is most against it, and every member goes to
+/// the seed nearer in hops along the cluster's zero-offset edges; when both halves are connected they become
+/// two clusters (the edges between them act as a link), each placed at the mean surface position of its
+/// members (their lattice points coincide), so each is projected onto its own sheet. Returns the number of
+/// clusters split; `parent` (union-find) and `own_place` (members placed by their positions) are updated.
+int split_straddling_clusters(const RemeshSurface& s, const Features& features, const HierarchyLevel& L,
+                              const std::vector<std::array<int, 2>>& zero_edges, const std::vector<int>& cluster_of,
+                              const std::vector<Vec3>& pos, const std::vector<Vec3>& nrm, int C, double scale,
+                              const TriangleTree& surface, std::vector<int>& parent,
+                              std::vector<char>& own_place) {
+  constexpr double kStraddle = -0.3;
+  constexpr double kOffSurface = 0.08;
+  const int V = static_cast<int>(cluster_of.size());
+  std::vector<int> opposite(C, -1);
+  std::vector<double> lowest(C, kStraddle);
+  for (int v = 0; v < V; ++v) {
+    const double c = L.n[v].dot(nrm[cluster_of[v]]);
+    if (c < lowest[cluster_of[v]]) {
+      lowest[cluster_of[v]] = c;
+      opposite[cluster_of[v]] = v;
+    }
+  }
+  for (int v = 0; v < V; ++v)
+    if (features.vertex_kind[v] != kNoFeature) opposite[cluster_of[v]] = -1;
+  for (int c = 0; c < C; ++c)
+    if (opposite[c] >= 0 && surface.closest(pos[c]).squared_distance < kOffSurface * kOffSurface * scale * scale)
+      opposite[c] = -1;
+  std::vector<std::vector<int>> members(C);
+  for (int v = 0; v < V; ++v)
+    if (opposite[cluster_of[v]] >= 0) members[cluster_of[v]].push_back(v);
+  std::vector<std::vector<std::array<int, 2>>> inner(C);
+  for (const auto& e : zero_edges)
+    if (opposite[cluster_of[e[0]]] >= 0 && cluster_of[e[0]] == cluster_of[e[1]]) inner[cluster_of[e[0]]].push_back(e);
+  std::vector<char> group(V, 0);
+  int split = 0;
+  for (int c = 0; c < C; ++c) {
+    if (opposite[c] < 0) continue;
+    // Two seeds: the member whose normal is most against the mean, and the member most against that one;
+    // every member goes to the seed nearer in hops along zero-offset edges (both halves stay connected).
+    const int seed0 = opposite[c];
+    int seed1 = seed0;
+    for (int v : members[c])
+      if (L.n[v].dot(L.n[seed0]) < L.n[seed1].dot(L.n[seed0])) seed1 = v;
+    if (seed1 == seed0) continue;
+    std::vector<int> saved;
+    for (int v : members[c]) saved.push_back(parent[v]);
+    std::unordered_map<int, std::vector<int>> nb;
+    for (const auto& e : inner[c]) {
+      nb[e[0]].push_back(e[1]);
+      nb[e[1]].push_back(e[0]);
+    }
+    std::unordered_map<int, int> side;
+    std::vector<int> queue = {seed0, seed1};
+    side[seed0] = 0;
+    side[seed1] = 1;
+    for (std::size_t head = 0; head < queue.size(); ++head)
+      for (int u : nb[queue[head]])
+        if (!side.count(u)) {
+          side[u] = side[queue[head]];
+          queue.push_back(u);
+        }
+    for (int v : members[c]) {
+      group[v] = side.count(v) ? side[v] : 0;
+      parent[v] = v;
+    }
+    for (const auto& e : inner[c])
+      if (group[e[0]] == group[e[1]]) parent[find(parent, e[0])] = find(parent, e[1]);
+    std::vector<int> roots;
+    for (int v : members[c]) roots.push_back(find(parent, v));
+    std::sort(roots.begin(), roots.end());
+    roots.erase(std::unique(roots.begin(), roots.end()), roots.end());
+    if (roots.size() == 2) {
+      ++split;
+      for (int v : members[c]) own_place[v] = 1;
+    } else {
+      for (std::size_t k = 0; k < members[c].size(); ++k) parent[members[c][k]] = saved[k];
+    }
+  }
+  return split;
+}
+
 }  // namespace
 
 ProjectionTargets make_projection_targets(const RemeshSurface& s, const Features& f) {
@@ -47,21 +135,26 @@ ProjectionTargets make_projection_targets(const RemeshSurface& s, const Features
 
 PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, const HierarchyLevel& L,
                               const LatticeOffsets& offsets, double scale, const ProjectionTargets& targets, int max_face_size,
-                              ExtractionReport& report, std::vector<char>* feature_kind_out) {
+                              ExtractionReport& report, std::vector<char>* feature_kind_out,
+                              bool split_thin_clusters) {
   const int V = s.num_vertices();
   const int E = static_cast<int>(s.edges.size());
   // 1. Classify edges.
   std::vector<int> parent(V);
   std::iota(parent.begin(), parent.end(), 0);
-  std::vector<std::array<int, 2>> unit_edges;
+  std::vector<std::array<int, 2>> unit_edges, zero_edges;
   for (int e = 0; e < E; ++e) {
     const int i = s.edges[e][0], j = s.edges[e][1];
     const Eigen::Vector2i& d = offsets.offset[e];
     const int l1 = std::abs(d[0]) + std::abs(d[1]);
-    if (l1 == 0) parent[find(parent, i)] = find(parent, j);
+    if (l1 == 0) {
+      parent[find(parent, i)] = find(parent, j);
+      zero_edges.push_back({i, j});
+    }
     else if (l1 == 1) unit_edges.push_back({i, j});
   }
   // 2. Clusters and links; merge clusters joined by very short links (repeat until stable).
+  std::vector<char> own_place(V, 0);  // members of a split cluster: placed at their own positions
   auto cluster_positions = [&](std::vector<Vec3>& pos, std::vector<Vec3>& nrm, std::vector<int>& cluster_of,
                                int& C) {
     std::vector<int> id(V, -1);
@@ -84,7 +177,7 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
       const double a = L.area[v] > 0 ? L.area[v] : 1e-300;
       nrm[cluster_of[v]] += a * L.n[v];
       if (features.vertex_kind[v] != strongest[cluster_of[v]]) continue;
-      pos[cluster_of[v]] += a * L.p[v];
+      pos[cluster_of[v]] += a * (own_place[v] ? s.positions[v] : L.p[v]);
       w[cluster_of[v]] += a;
     }
     for (int c = 0; c < C; ++c) {
@@ -109,6 +202,10 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
     if (merged == 0) break;
   }
   cluster_positions(pos, nrm, cluster_of, C);
+  if (split_thin_clusters)
+    report.split_clusters = split_straddling_clusters(s, features, L, zero_edges, cluster_of, pos, nrm, C, scale,
+                                                      targets.surface, parent, own_place);
+  if (report.split_clusters > 0) cluster_positions(pos, nrm, cluster_of, C);
   report.clusters = C;
 
   // 3. Faces: the output graph (clusters joined by unit-offset edges) is embedded in the surface, and its
@@ -121,8 +218,9 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   auto blocks = [&](int e) {
     const int a = s.edges[e][0], b = s.edges[e][1];
     if (s.edge_faces[e][1] < 0 || cluster_of[a] == cluster_of[b]) return true;
+    // A zero offset between two clusters is the cut through a split cluster: a link between its halves.
     const Eigen::Vector2i& d = offsets.offset[e];
-    return std::abs(d[0]) + std::abs(d[1]) == 1;
+    return std::abs(d[0]) + std::abs(d[1]) <= 1;
   };
   std::vector<char> blocking(E);
   {

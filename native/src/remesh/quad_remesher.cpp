@@ -368,7 +368,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
   t0 = std::chrono::steady_clock::now();
   const ProjectionTargets targets = make_projection_targets(surface, features);
   result.mesh = extract_quad_mesh(surface, features, levels[0], offsets, s, targets, options.max_face_size,
-                                  result.extraction, &result.vertex_feature_kind);
+                                  result.extraction, &result.vertex_feature_kind, options.split_thin_clusters);
   const long long surface_chi = euler_characteristic(surface);
   if (flow_applied && euler_characteristic(result.mesh) != surface_chi) {
     // The changed offsets can pinch a thin part (an arm, a finger) at a coarse lattice, which changes the
@@ -379,7 +379,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     HierarchyLevel plain = levels[0];
     plain.p = optimised_p;
     PolygonMesh plain_mesh = extract_quad_mesh(surface, features, plain, before, s, targets, options.max_face_size,
-                                               plain_report, &plain_kind);
+                                               plain_report, &plain_kind, options.split_thin_clusters);
     if (std::llabs(euler_characteristic(plain_mesh) - surface_chi) <
         std::llabs(euler_characteristic(result.mesh) - surface_chi)) {
       result.mesh = std::move(plain_mesh);

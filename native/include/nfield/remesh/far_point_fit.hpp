@@ -40,7 +40,7 @@ struct FarPointFitReport {
 /// `scale`: the target edge length s (mesh units). `threshold`: fraction of s above which a distance is
 /// worked on. Only vertices of kind kNoFeature move. At most `passes` passes (fewer when one moves nothing).
 FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& feature_kind,
-                                 const ProjectionTargets& targets, double scale, int passes = 3,
+                                 const ProjectionTargets& targets, double scale, int passes = 6,
                                  double threshold = 0.4);
 
 }  // namespace nfield::remesh

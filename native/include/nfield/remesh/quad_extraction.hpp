@@ -36,6 +36,7 @@ struct ExtractionReport {
   int clusters = 0;
   int links = 0;
   int merged_short_links = 0;
+  int split_clusters = 0;       ///< clusters wrapped round a thin part, split in two (one per sheet)
   int removed_dangling = 0;     ///< spikes cut off face loops (links ending inside a face)
   int split_faces = 0;          ///< faces that revisited a vertex
   int dropped_large_faces = 0;  ///< faces over max_face_size
@@ -55,10 +56,13 @@ ProjectionTargets make_projection_targets(const RemeshSurface& surface, const Fe
 
 /// `level0` is levels[0] after optimise_positions (one entry per surface vertex; its lattice points p give
 /// the output positions), `offsets` the integer offsets of its edges. `feature_kind_out` (optional)
-/// receives the FeatureKind of each output vertex.
+/// receives the FeatureKind of each output vertex. `split_thin_clusters`: a cluster whose surface points
+/// wrap round a part thinner than a lattice cell (normals against each other, its lattice point off the
+/// surface by 0.08 scale or more) is split into two output vertices, one per side.
 PolygonMesh extract_quad_mesh(const RemeshSurface& surface, const Features& features, const HierarchyLevel& level0,
                               const LatticeOffsets& offsets, double scale, const ProjectionTargets& targets, int max_face_size,
-                              ExtractionReport& report, std::vector<char>* feature_kind_out = nullptr);
+                              ExtractionReport& report, std::vector<char>* feature_kind_out = nullptr,
+                              bool split_thin_clusters = true);
 
 /// Moves each vertex onto the input: feature vertices (corner or curve) onto the nearest feature edge,
 /// the others onto the nearest surface point. (Corners are snapped to their corner by the caller.)

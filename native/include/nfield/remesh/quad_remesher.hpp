@@ -51,6 +51,7 @@ struct QuadRemeshOptions {
   /// vertices (twice the time).
   int pure_quad_cones = -1;
   bool fit_far_points = true;        ///< vertices moved onto input points the output misses (far_point_fit.hpp)
+  bool split_thin_clusters = true;   ///< clusters wrapped round a thin part split per side (quad_extraction.hpp)
 };
 
 struct QuadRemeshResult {
