@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "nfield/remesh/quad_stats.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
@@ -47,20 +48,12 @@ struct Excess {
   }
 };
 
-/// The points of face f where quad_stats.hpp samples the distance (vertices, centroid, edge midpoints, half
-/// way from the vertices to the centroid).
+/// The points of face f where quad_stats.hpp samples the distance: its corners, then face_distance_samples.
 std::vector<Vec3> face_samples(const PolygonMesh& mesh, int f) {
-  const int k = mesh.face_size(f);
-  const int* v = mesh.face(f);
-  Vec3 c = Vec3::Zero();
-  for (int i = 0; i < k; ++i) c += mesh.positions[v[i]];
-  c /= k;
-  std::vector<Vec3> out{c};
-  for (int i = 0; i < k; ++i) {
-    out.push_back(mesh.positions[v[i]]);
-    out.push_back(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));
-    out.push_back(0.5 * (mesh.positions[v[i]] + c));
-  }
+  std::vector<Vec3> out;
+  for (int i = 0; i < mesh.face_size(f); ++i) out.push_back(mesh.positions[mesh.face(f)[i]]);
+  const std::vector<Vec3> rest = face_distance_samples(mesh, f);
+  out.insert(out.end(), rest.begin(), rest.end());
   return out;
 }
 

@@ -517,8 +517,7 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     return static_cast<int>(iv.interior.size() + iv.boundary.size());
   };
   const int irregular_free = irregular(free_cones), irregular_pinned = irregular(pinned);
-  const bool take_pinned = pinned.untangle.flipped_after <= free_cones.untangle.flipped_after &&
-                           std::make_pair(pinned.untangle.flipped_after, irregular_pinned) <
+  const bool take_pinned = std::make_pair(pinned.untangle.flipped_after, irregular_pinned) <
                                std::make_pair(free_cones.untangle.flipped_after, irregular_free) &&
                            distance_pinned <= kPinnedDistanceSlack * distance_free;
   QuadRemeshResult& kept = take_pinned ? pinned : free_cones;

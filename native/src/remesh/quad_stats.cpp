@@ -141,6 +141,18 @@ std::vector<double> edge_alignment_degrees(const PolygonMesh& mesh, const Refere
   return out;
 }
 
+std::vector<Vec3> face_distance_samples(const PolygonMesh& mesh, int f) {
+  const int k = mesh.face_size(f);
+  const int* v = mesh.face(f);
+  const Vec3 c = polygon_centroid(mesh, f);
+  std::vector<Vec3> out{c};
+  for (int i = 0; i < k; ++i) {
+    out.push_back(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));
+    out.push_back(0.5 * (mesh.positions[v[i]] + c));
+  }
+  return out;
+}
+
 double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree) {
   if (tree.empty()) return std::numeric_limits<double>::infinity();
   double worst2 = 0;
@@ -149,16 +161,8 @@ double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree) {
   for (int i : mesh.indices) used[i] = 1;
   for (int v = 0; v < mesh.num_vertices(); ++v)
     if (used[v]) sample(mesh.positions[v]);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const int k = mesh.face_size(f);
-    const int* v = mesh.face(f);
-    const Vec3 c = polygon_centroid(mesh, f);
-    sample(c);
-    for (int i = 0; i < k; ++i) {
-      sample(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]]));
-      sample(0.5 * (mesh.positions[v[i]] + c));
-    }
-  }
+  for (int f = 0; f < mesh.num_faces(); ++f)
+    for (const Vec3& p : face_distance_samples(mesh, f)) sample(p);
   return std::sqrt(worst2);
 }
 

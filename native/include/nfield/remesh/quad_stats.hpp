@@ -74,6 +74,10 @@ std::vector<double> scaled_jacobians(const PolygonMesh& mesh, const ReferenceSur
 /// Edge alignment angle (degrees) per unique edge (order of unique_edges); NaN where the field is zero.
 std::vector<double> edge_alignment_degrees(const PolygonMesh& mesh, const ReferenceSurface& reference);
 
+/// The points of face f, besides its corners, where the distance statistics sample a polygon: the centroid,
+/// then for each corner i the midpoint of edge (i, i+1) and the point half way from corner i to the centroid.
+std::vector<Vec3> face_distance_samples(const PolygonMesh& mesh, int f);
+
 /// Largest distance from samples of `mesh` to the surface of `tree`.
 double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree);
 
