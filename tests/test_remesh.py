@@ -155,6 +155,25 @@ def test_pinned_cones_become_single_valence_3_vertices():
         native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quad_cones=2)
 
 
+def test_pure_quad_cones_option_of_the_core_call():
+    """quad_remesh(pure_quad_cones=...) reaches the native choice: on the sphere at 300 faces (the native
+    test above) "pinned" gives the optimum of 8 valence-3 vertices, "free" more, and "best" the pinned mesh;
+    the statistics of each run count what its report says."""
+    V, F = meshgen.icosphere(4)
+    mesh = Mesh(V, F)
+    field = smoothest_field(mesh, 4)
+    runs = {c: quad_remesh(mesh, field, target_faces=300, pure_quads=True, pure_quad_cones=c)
+            for c in ("pinned", "free", "best")}
+    pinned, free, best = (runs[c].stats for c in ("pinned", "free", "best"))
+    assert pinned["irregular_vertices"] == 8 and pinned["pure_quad_conversion"]["pinned_cones"] == 8
+    assert free["pure_quad_conversion"]["pinned_cones"] == 0 and free["irregular_vertices"] > 8
+    assert best["pure_quad_conversion"]["irregular_free_cones"] == free["irregular_vertices"]
+    assert best["pure_quad_conversion"]["irregular_pinned_cones"] == 8
+    assert runs["best"].faces == runs["pinned"].faces
+    with pytest.raises(ValueError, match="pure_quad_cones"):
+        quad_remesh(mesh, field, target_faces=300, pure_quads=True, pure_quad_cones="auto")
+
+
 @pytest.mark.parametrize("name", ["fertility.off", "rocker-arm.obj"])
 def test_pure_quads_at_full_resolution_stay_as_close_to_the_input_as_quad_dominant(name):
     """Pure quads by pairing the odd faces keep the quad-dominant lattice (the same spacing): only a few
@@ -459,6 +478,12 @@ def test_cli_remesh(tmp_path):
     import json
     st = json.loads(r.stdout)
     assert st["quad_fraction"] == 1.0 and st["n"] == 2 and st["pure_quad_method"] == "pair"
+    assert st["pure_quad_conversion"]["irregular_free_cones"] >= 0  # the default made both candidates
+    r = _cli("remesh", mesh_path("fandisk.obj"), "--field", field, "--n", 2, "--faces", 500, "--out", out,
+             "--pure-quads", "--pure-quad-cones", "free", "--json")
+    assert r.returncode == 0, r.stderr
+    st = json.loads(r.stdout)
+    assert st["pure_quad_conversion"]["pinned_cones"] == 0 and st["pure_quad_conversion"]["irregular_free_cones"] == -1
     r = _cli("remesh", mesh_path("fandisk.obj"), "--faces", 500, "--out", out, "--pure-quads",
              "--pure-quad-method", "subdivide", "--json")
     assert r.returncode == 0, r.stderr

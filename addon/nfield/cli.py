@@ -239,6 +239,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--pure-quad-method", choices=("pair", "subdivide"), default="pair",
                    help="with --pure-quads: pair (default) or subdivide (one subdivision step of a lattice twice "
                         "as coarse: fewer irregular vertices, further from the input)")
+    r.add_argument("--pure-quad-cones", choices=("best", "pinned", "free"), default="best",
+                   help="with --pure-quads pair: pin the field's singularities to lattice points, leave them free, "
+                        "or try both and keep the better (default best: twice the time)")
     r.add_argument("--sharp-angle", type=float, default=40.0,
                    help="keep edges with a dihedral angle above this many degrees (default 40; 0: none)")
     r.add_argument("--no-boundary", action="store_true", help="do not keep boundaries as feature curves")
@@ -487,6 +490,7 @@ def cmd_remesh(args) -> int:
         n = None
     V, faces, stats = quad_remesh(mesh, field, n=n, target_faces=args.faces, edge_length=args.edge_length,
                                   pure_quads=args.pure_quads, pure_quad_method=args.pure_quad_method,
+                                  pure_quad_cones=args.pure_quad_cones,
                                   keep_boundary=not args.no_boundary,
                                   sharp_angle=args.sharp_angle, seed=args.seed, strict=args.strict)
     try:

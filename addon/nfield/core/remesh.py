@@ -258,8 +258,13 @@ def _positive(value: Any, name: str) -> float:
     return v
 
 
+# The native option: -1 makes both candidates, 1 pins the cones, 0 leaves them free.
+_PURE_QUAD_CONES = {"best": -1, "pinned": 1, "free": 0}
+
+
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, pure_quad_method: str = "pair",
+                pure_quad_cones: str = "best",
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
                 seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
                 strict: bool = False, cancel_position_singularities: bool = True, fit_far_points: bool = True,
@@ -276,6 +281,11 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         (triangle, pentagon) is joined to the nearest other one (or to the boundary) by a path of faces that
         are split into half-width quads; "subdivide": a lattice twice as coarse, every face split into quads
         once (about as many faces, but 1.5-3x further from the input).
+    pure_quad_cones : with the "pair" method, where the field's singularities go. "pinned": each onto a
+        lattice point (one valence-3 or -5 vertex per cone, no odd face to pair there); "free": where the
+        position field puts them; "best" (default): both, keeping the one with fewer irregular vertices
+        unless it flips more faces or lies further from the input (twice the time of either).
+        ``stats["pure_quad_conversion"]`` reports the irregular count of each candidate made.
     keep_boundary, sharp_angle : feature curves the output keeps: boundaries, and edges whose dihedral angle
         exceeds ``sharp_angle`` degrees (None or 0: none).
     feature_field_angle : a sharp edge is kept only where the field runs within this many degrees (0..45) of
@@ -309,6 +319,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     mesh = _check_mesh(mesh)
     if pure_quad_method not in ("pair", "subdivide"):
         raise ValueError(f"pure_quad_method must be 'pair' or 'subdivide', got {pure_quad_method!r}")
+    if pure_quad_cones not in _PURE_QUAD_CONES:
+        raise ValueError(f"pure_quad_cones must be 'best', 'pinned' or 'free', got {pure_quad_cones!r}")
     directions, n = field_directions(mesh, field, n)
     if (target_faces is None) == (edge_length is None):
         raise ValueError("give exactly one of target_faces (number of output faces) or edge_length (mesh units)")
@@ -346,6 +358,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
 
     r = native().quad_remesh(mesh.native, np.ascontiguousarray(directions), edge_length=h, pure_quads=bool(pure_quads),
                              subdivide_for_pure_quads=pure_quad_method == "subdivide",
+                             pure_quad_cones=_PURE_QUAD_CONES[pure_quad_cones],
                              keep_boundary=bool(keep_boundary), sharp_angle=sharp_angle,
                              feature_field_angle=feature_field_angle, seed=int(seed),
                              iterations=int(iterations), relax_iterations=int(relax_iterations),
