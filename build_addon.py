@@ -691,12 +691,30 @@ def cmd_demo(_args) -> int:
     return 0
 
 
+# Benchmark-only peers (never part of the add-on or its environments): installed with `pip --target` into
+# bench/.peers, which bench/remesh.py alone puts on sys.path. numpy comes from .venv (hence --no-deps).
+BENCH_PEERS_DIR = ROOT / "bench" / ".peers"
+BENCH_PEER_PACKAGES = {"pyinstantmeshes": "pyinstantmeshes==1.0.0"}
+
+
+def install_bench_peers() -> None:
+    missing = [spec for name, spec in BENCH_PEER_PACKAGES.items() if not (BENCH_PEERS_DIR / name).is_dir()]
+    if not missing:
+        return
+    r = run([VENV_PY, "-m", "pip", "install", "--quiet", "--no-deps", "--target", BENCH_PEERS_DIR, *missing],
+            check=False)
+    if r.returncode:
+        say(f"could not install the benchmark peers {', '.join(missing)} into bench/.peers: "
+            "their rows will read 'failed'")
+
+
 def cmd_bench(bench_args: list[str]) -> int:
     script = ROOT / "bench" / "run.py"
     if not script.is_file():
         raise Failure("bench/run.py does not exist yet")
     cmd_setup()
     build()
+    install_bench_peers()
     return run([VENV_PY, script, *bench_args], env=addon_env(), check=False).returncode
 
 

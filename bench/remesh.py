@@ -102,8 +102,18 @@ def run_quadriflow(mesh, faces: int):
     return V, F, dt, {}
 
 
+# Instant Meshes is a benchmark-only peer: `python3 build_addon.py bench` installs it into bench/.peers.
+PEERS_DIR = HERE / ".peers"
+
+
 def run_instant_meshes(mesh, faces: int, pure: bool = False):
-    import pyinstantmeshes
+    if PEERS_DIR.is_dir() and str(PEERS_DIR) not in sys.path:
+        sys.path.append(str(PEERS_DIR))
+    try:
+        import pyinstantmeshes
+    except ImportError:
+        raise RuntimeError("pyinstantmeshes is not installed: `python3 build_addon.py bench` installs it into "
+                           "bench/.peers") from None
 
     tmp = tempfile.mkdtemp(prefix="nfield_im_")
     src, dst = os.path.join(tmp, "in.obj"), os.path.join(tmp, "out.obj")

@@ -17,7 +17,7 @@ Parts (each also runs alone; every mesh in its own subprocess):
   fig8      bench/fig8.py          reduced vs exact on the bunny for k = 50 ... 2000 (one basis of k = 2000,
                                    cached in bench/results/cache/), table and PNG
   remesh    bench/remesh.py        quad remeshing beside QuadriFlow (bpy) and Instant Meshes (pyinstantmeshes,
-                                   optional: reported as failed when missing), ~5,000 quads on five meshes
+                                   installed into bench/.peers by `build_addon.py bench`; failed when missing), ~5,000 quads on five meshes
 Writes bench/results/table1.{json,md} (the combined table, with --quick: table1_quick.*) besides each part's
 own files, prints the combined JSON and then the readable table.
 

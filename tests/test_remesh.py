@@ -498,3 +498,19 @@ def test_cli_remesh(tmp_path):
     assert r.returncode == 2 and "no quad structure" in r.stderr
     r = _cli("remesh", mesh_path("fandisk.obj"), "--edge-length", 1e6, "--out", out)
     assert r.returncode == 2 and "too small for the target edge length" in r.stderr
+
+
+def test_benchmark_names_the_missing_instant_meshes_peer(monkeypatch, tmp_path):
+    """bench/remesh.py looks for the benchmark-only peer in bench/.peers (where `build_addon.py bench`
+    installs it); when it is missing, the peer's row fails with a message saying how to install it."""
+    import importlib.util
+    bench = mesh_path("fandisk.obj").parents[2] / "bench"
+    monkeypatch.syspath_prepend(str(bench))
+    spec = importlib.util.spec_from_file_location("bench_remesh_under_test", bench / "remesh.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.PEERS_DIR == bench / ".peers"
+    monkeypatch.setattr(module, "PEERS_DIR", tmp_path / "no-peers")
+    monkeypatch.setitem(sys.modules, "pyinstantmeshes", None)  # import fails even where it is installed
+    with pytest.raises(RuntimeError, match=r"build_addon\.py bench.*bench/\.peers"):
+        module.run_instant_meshes(core_mesh("fandisk.obj"), 500)
