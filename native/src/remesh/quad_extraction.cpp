@@ -5,6 +5,8 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "nfield/parallel_for.hpp"
+
 namespace nfield::remesh {
 
 namespace {
@@ -406,16 +408,17 @@ void project_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Pr
       reach[v[i]] = std::max(reach[v[i]], (mesh.positions[v[(i + 1) % k]] - mesh.positions[v[i]]).norm());
     }
   }
-  for (int v = 0; v < mesh.num_vertices(); ++v) {
+  // Each vertex reads and writes only its own position: the vertices split over both cores.
+  parallel_for(mesh.num_vertices(), [&](int v) {
     const Vec3 p = mesh.positions[v];
     const bool on_feature = v < static_cast<int>(kind.size()) && kind[v] != kNoFeature && !targets.feature_edges.empty();
     if (on_feature) {
       const auto hit = targets.feature_edges.closest(p);
       if (hit.triangle >= 0) mesh.positions[v] = hit.point;
-      continue;
+      return;
     }
     auto hit = targets.surface.closest(p);
-    if (hit.triangle < 0) continue;
+    if (hit.triangle < 0) return;
     const Vec3 side = facing[v].norm() > 0 ? Vec3(facing[v].normalized()) : Vec3::Zero();
     if (side.squaredNorm() > 0 && targets.surface.normal_at(hit, targets.surface_normals).dot(side) < 0.3) {
       // The nearest point is on a sheet facing the other way (a part thinner than a face): the nearest point
@@ -433,7 +436,7 @@ void project_vertices(PolygonMesh& mesh, const std::vector<char>& kind, const Pr
         }
     }
     mesh.positions[v] = hit.point;
-  }
+  });
 }
 
 }  // namespace nfield::remesh

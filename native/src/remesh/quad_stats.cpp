@@ -5,6 +5,8 @@
 #include <limits>
 #include <unordered_map>
 
+#include "nfield/parallel_for.hpp"
+
 namespace nfield::remesh {
 
 namespace {
@@ -101,7 +103,7 @@ double corner_scaled_jacobian(const Vec3& p, const Vec3& next, const Vec3& prev,
 std::vector<double> scaled_jacobians(const PolygonMesh& mesh, const ReferenceSurface* reference) {
   std::vector<double> out(mesh.num_faces(), 0.0);
   const bool use_reference = reference && !reference->tree.empty();
-  for (int f = 0; f < mesh.num_faces(); ++f) {
+  parallel_for(mesh.num_faces(), [&](int f) {
     const int k = mesh.face_size(f);
     const int* v = mesh.face(f);
     const Vec3 own = polygon_normal(mesh, f);
@@ -112,7 +114,7 @@ std::vector<double> scaled_jacobians(const PolygonMesh& mesh, const ReferenceSur
                                                      use_reference ? &reference->tree : nullptr,
                                                      use_reference ? &reference->normals : nullptr, own, k == 3));
     out[f] = std::isfinite(worst) ? worst : 0.0;
-  }
+  });
   return out;
 }
 
@@ -120,24 +122,24 @@ std::vector<double> edge_alignment_degrees(const PolygonMesh& mesh, const Refere
   const auto edges = unique_edges(mesh);
   std::vector<double> out(edges.size(), std::numeric_limits<double>::quiet_NaN());
   if (reference.tree.empty()) return out;
-  for (size_t e = 0; e < edges.size(); ++e) {
+  parallel_for(static_cast<int>(edges.size()), [&](int e) {
     const Vec3& a = mesh.positions[edges[e][0]];
     const Vec3& b = mesh.positions[edges[e][1]];
     const auto hit = reference.tree.closest(0.5 * (a + b));
-    if (hit.triangle < 0) continue;
+    if (hit.triangle < 0) return;
     const Vec3& n = reference.normals.face[hit.triangle];
     const Vec3& d = reference.directions[hit.triangle];
-    if (d.squaredNorm() == 0 || n.squaredNorm() == 0) continue;
+    if (d.squaredNorm() == 0 || n.squaredNorm() == 0) return;
     const Vec3 x = (d - n * n.dot(d)).normalized();
     const Vec3 y = n.cross(x);
     const Vec3 t = b - a;
     const double tx = t.dot(x), ty = t.dot(y);
-    if (tx == 0 && ty == 0) continue;
+    if (tx == 0 && ty == 0) return;
     // Angle modulo 90 degrees, folded into [0, 45].
     double ang = std::fmod(std::abs(std::atan2(ty, tx)), kPi / 2);
     ang = std::min(ang, kPi / 2 - ang);
     out[e] = ang * 180.0 / kPi;
-  }
+  });
   return out;
 }
 
@@ -155,15 +157,21 @@ std::vector<Vec3> face_distance_samples(const PolygonMesh& mesh, int f) {
 
 double one_sided_distance(const PolygonMesh& mesh, const TriangleTree& tree) {
   if (tree.empty()) return std::numeric_limits<double>::infinity();
-  double worst2 = 0;
-  auto sample = [&](const Vec3& p) { worst2 = std::max(worst2, tree.closest(p).squared_distance); };
+  // The farthest sample of each vertex and face, then the largest of those (a maximum does not depend on
+  // the order, so splitting the queries over both cores changes nothing).
   std::vector<char> used(mesh.num_vertices(), 0);
   for (int i : mesh.indices) used[i] = 1;
-  for (int v = 0; v < mesh.num_vertices(); ++v)
-    if (used[v]) sample(mesh.positions[v]);
-  for (int f = 0; f < mesh.num_faces(); ++f)
-    for (const Vec3& p : face_distance_samples(mesh, f)) sample(p);
-  return std::sqrt(worst2);
+  const int V = mesh.num_vertices();
+  std::vector<double> worst2(V + mesh.num_faces(), 0.0);
+  parallel_for(static_cast<int>(worst2.size()), [&](int i) {
+    if (i < V) {
+      if (used[i]) worst2[i] = tree.closest(mesh.positions[i]).squared_distance;
+      return;
+    }
+    for (const Vec3& p : face_distance_samples(mesh, i - V))
+      worst2[i] = std::max(worst2[i], tree.closest(p).squared_distance);
+  });
+  return worst2.empty() ? 0.0 : std::sqrt(*std::max_element(worst2.begin(), worst2.end()));
 }
 
 double hausdorff_distance(const PolygonMesh& mesh, const ReferenceSurface& reference) {
