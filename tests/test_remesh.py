@@ -453,6 +453,37 @@ def test_progress_cancel_and_gil(fandisk):
     assert box["gap"] < 0.25 * box["seconds"]
 
 
+def test_both_cone_candidates_report_progress_from_the_calling_thread_and_cancel(fandisk):
+    """Pure quads by pairing with pure_quad_cones="best" make the pinned candidate on a second native thread
+    while the calling thread makes the free one. The callback still runs only on the calling thread, sees a
+    monotone fraction ending at 1, and a cancel or an exception from it stops both candidates."""
+    mesh, field = fandisk
+    seen, threads = [], set()
+
+    def record(f):
+        seen.append(f)
+        threads.add(threading.get_ident())
+    both = quad_remesh(mesh, field, target_faces=1000, pure_quads=True, progress=record, stats=False)
+    assert threads == {threading.get_ident()}
+    assert seen[-1] == 1.0 and all(b >= a for a, b in zip(seen, seen[1:])) and 0.0 <= seen[0] < 0.5
+    # The result is one of the two candidates, made as each alone would make it.
+    conv = both.stats["pure_quad_conversion"]
+    alone = quad_remesh(mesh, field, target_faces=1000, pure_quads=True, stats=False,
+                        pure_quad_cones="pinned" if conv["pinned_cones"] else "free")
+    assert both.faces == alone.faces and np.array_equal(both.vertices, alone.vertices)
+    with pytest.raises(native().Cancelled):
+        quad_remesh(mesh, field, target_faces=1000, pure_quads=True, progress=lambda f: f < 0.3)
+
+    class Stop(Exception):
+        pass
+
+    def boom(f):
+        if f > 0.6:
+            raise Stop("from the callback")
+    with pytest.raises(Stop):
+        quad_remesh(mesh, field, target_faces=1000, pure_quads=True, progress=boom)
+
+
 # ---------------------------------------------------------------------------------------------- CLI
 def _cli(*args):
     # The environment is kept (the sanitizer job's LD_PRELOAD / ASAN_OPTIONS must reach the child).

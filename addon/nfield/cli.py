@@ -241,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "as coarse: fewer irregular vertices, further from the input)")
     r.add_argument("--pure-quad-cones", choices=("best", "pinned", "free"), default="best",
                    help="with --pure-quads pair: pin the field's singularities to lattice points, leave them free, "
-                        "or try both and keep the better (default best: twice the time)")
+                        "or try both and keep the better (default best: twice the work, on two threads)")
     r.add_argument("--sharp-angle", type=float, default=40.0,
                    help="keep edges with a dihedral angle above this many degrees (default 40; 0: none)")
     r.add_argument("--no-boundary", action="store_true", help="do not keep boundaries as feature curves")

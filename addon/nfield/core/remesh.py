@@ -284,7 +284,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     pure_quad_cones : with the "pair" method, where the field's singularities go. "pinned": each onto a
         lattice point (one valence-3 or -5 vertex per cone, no odd face to pair there); "free": where the
         position field puts them; "best" (default): both, keeping the one with fewer irregular vertices
-        unless it flips more faces or lies further from the input (twice the time of either).
+        unless it flips more faces or lies further from the input (twice the work, on two threads).
         ``stats["pure_quad_conversion"]`` reports the irregular count of each candidate made.
     keep_boundary, sharp_angle : feature curves the output keeps: boundaries, and edges whose dihedral angle
         exceeds ``sharp_angle`` degrees (None or 0: none).

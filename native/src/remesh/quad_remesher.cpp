@@ -1,9 +1,12 @@
 #include "nfield/remesh/quad_remesher.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <sstream>
+#include <thread>
 #include <utility>
 
 #include "nfield/errors.hpp"
@@ -505,13 +508,50 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   // pinned one is kept when it has no more flipped faces, fewer irregular vertices, and stays as close to the
   // input (its farthest point at most kPinnedDistanceSlack times the free one's: a pinned cone on a thin part
   // can pull a row off the surface, fertility at 1,500 faces 1.0 -> 1.5% of the diagonal); else the free one.
-  auto part = [&](double from) -> Progress {
-    if (!progress) return {};
-    return [&, from](double f) { return progress(from + 0.5 * f); };
-  };
+  //
+  // The two candidates are independent, so the pinned one runs on a second thread while this thread makes
+  // the free one. Progress (the mean of both fractions) and cancellation go through this thread only: the
+  // caller's callback may hold an interpreter lock, and is never called from the other thread.
+  std::atomic<double> pinned_fraction{0.0};
+  std::atomic<bool> stop{false}, pinned_done{false};
   double distance_free = 0, distance_pinned = 0;
-  QuadRemeshResult free_cones = remesh_once(mesh, triangle_directions, options, false, part(0.0), &distance_free);
-  QuadRemeshResult pinned = remesh_once(mesh, triangle_directions, options, true, part(0.5), &distance_pinned);
+  QuadRemeshResult pinned;
+  std::exception_ptr pinned_error;
+  std::thread pinned_thread([&] {
+    try {
+      const Progress pinned_progress = [&](double f) {
+        pinned_fraction = f;
+        return !stop.load();
+      };
+      pinned = remesh_once(mesh, triangle_directions, options, true, pinned_progress, &distance_pinned);
+    } catch (...) {
+      pinned_error = std::current_exception();
+    }
+    pinned_done = true;
+  });
+  // Joins the second thread before any exit from here, cancelling it first when this thread failed.
+  struct JoinPinned {
+    std::thread& thread;
+    std::atomic<bool>& stop;
+    ~JoinPinned() {
+      if (thread.joinable()) {
+        stop = true;
+        thread.join();
+      }
+    }
+  } join_pinned{pinned_thread, stop};
+  auto combined = [&](double free_fraction) {
+    return !progress || progress(0.5 * (free_fraction + pinned_fraction.load()));
+  };
+  QuadRemeshResult free_cones =
+      remesh_once(mesh, triangle_directions, options, false, progress ? Progress(combined) : Progress(), &distance_free);
+  while (progress && !pinned_done.load()) {
+    // The free candidate is done; keep reporting (and listening for a cancel) while the pinned one ends.
+    if (!combined(1.0)) throw Cancelled("quad remeshing cancelled");
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  pinned_thread.join();
+  if (pinned_error) std::rethrow_exception(pinned_error);
   auto irregular = [](const QuadRemeshResult& r) {
     const IrregularVertices iv = irregular_vertices(r.mesh);
     return static_cast<int>(iv.interior.size() + iv.boundary.size());

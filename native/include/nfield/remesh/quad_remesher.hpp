@@ -48,7 +48,7 @@ struct QuadRemeshOptions {
   /// Pure quads by pairing only: 1 pins every field singularity to a lattice point (a vertex-centred cone:
   /// one valence-3 or -5 vertex, no odd face to pair), 0 leaves the cones where the position field puts
   /// them, -1 (default) makes both and keeps the one with fewer flipped faces, then fewer irregular
-  /// vertices (twice the time).
+  /// vertices (twice the work; the two run on two threads).
   int pure_quad_cones = -1;
   bool fit_far_points = true;        ///< vertices moved onto input points the output misses (far_point_fit.hpp)
   bool split_thin_clusters = true;   ///< clusters wrapped round a thin part split per side (quad_extraction.hpp)
