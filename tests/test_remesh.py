@@ -427,6 +427,18 @@ def test_line_field_and_array_and_session_inputs(fandisk):
 
 
 # ---------------------------------------------------------------------------------------------- progress, cancel, GIL
+class _CallbackStop(Exception):
+    pass
+
+
+def _raising_above(fraction):
+    """A progress callback that raises once the fraction passes ``fraction``."""
+    def callback(f):
+        if f > fraction:
+            raise _CallbackStop("from the callback")
+    return callback
+
+
 def test_progress_cancel_and_gil(fandisk):
     mesh, field = fandisk
     seen = []
@@ -434,15 +446,8 @@ def test_progress_cancel_and_gil(fandisk):
     assert seen[0] == 0.0 and seen[-1] == 1.0 and all(b >= a for a, b in zip(seen, seen[1:]))
     with pytest.raises(native().Cancelled):
         quad_remesh(mesh, field, target_faces=1000, progress=lambda f: f < 0.5)
-
-    class Stop(Exception):
-        pass
-
-    def boom(f):
-        if f > 0.3:
-            raise Stop("from the callback")
-    with pytest.raises(Stop):
-        quad_remesh(mesh, field, target_faces=1000, progress=boom)
+    with pytest.raises(_CallbackStop):
+        quad_remesh(mesh, field, target_faces=1000, progress=_raising_above(0.3))
     threads = []
     box = run_beside_main_loop(lambda: quad_remesh(mesh, field, target_faces=3000, stats=False,
                                                    progress=lambda f: threads.append(threading.current_thread().name)))
@@ -473,15 +478,8 @@ def test_both_cone_candidates_report_progress_from_the_calling_thread_and_cancel
     assert both.faces == alone.faces and np.array_equal(both.vertices, alone.vertices)
     with pytest.raises(native().Cancelled):
         quad_remesh(mesh, field, target_faces=1000, pure_quads=True, progress=lambda f: f < 0.3)
-
-    class Stop(Exception):
-        pass
-
-    def boom(f):
-        if f > 0.6:
-            raise Stop("from the callback")
-    with pytest.raises(Stop):
-        quad_remesh(mesh, field, target_faces=1000, pure_quads=True, progress=boom)
+    with pytest.raises(_CallbackStop):
+        quad_remesh(mesh, field, target_faces=1000, pure_quads=True, progress=_raising_above(0.6))
 
 
 # ---------------------------------------------------------------------------------------------- CLI
