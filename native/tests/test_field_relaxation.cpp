@@ -8,6 +8,7 @@
 
 #include "check.hpp"
 #include "plane_grid.hpp"
+#include "nfield/errors.hpp"
 #include "nfield/mesh.hpp"
 #include "nfield/remesh/field_relaxation.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
@@ -113,6 +114,9 @@ int main() {
     // of two, and the jitter alone is 4.02.
     CHECK_LE(off_axis_energy(m, targets, along_x), 0.1 * before);
     for (double q : scaled_jacobians_on(m, targets)) CHECK(q > 0.2);
+    // A mask of the wrong size is refused with a message, not read past its end.
+    CHECK_THROWS(ParameterError, "one entry per vertex",
+                 refine_along_field(m, kind, targets, along_x, 6, std::vector<char>(3, 0)));
   });
 
   run("in the last pass an edge more than 18 degrees off its axis pulls neither end", [&] {

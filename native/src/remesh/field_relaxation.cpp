@@ -3,7 +3,9 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
+#include <string>
 
+#include "nfield/errors.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
@@ -174,6 +176,9 @@ void relax_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const P
 void refine_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
                         const std::vector<Vec3>& surface_directions, int iterations, const std::vector<char>& fixed,
                         double skip_degrees) {
+  if (static_cast<int>(fixed.size()) != mesh.num_vertices())
+    throw ParameterError("refine_along_field: `fixed` needs one entry per vertex (" +
+                         std::to_string(mesh.num_vertices()) + "), got " + std::to_string(fixed.size()));
   const int n = std::min(iterations, kGlobalIterations);
   if (n <= 0) return;
   // Both parts keep every face at least as valid as it was or above kFloor; as nothing runs after this

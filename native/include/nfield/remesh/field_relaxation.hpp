@@ -47,6 +47,7 @@ void relax_along_field(PolygonMesh& mesh, const std::vector<char>& feature_kind,
 /// vertex no placement aligns every edge, and such an edge's share of the mean would bend the aligned edges
 /// of the vertex it pulls; left out, it keeps its error alone (one edge in the 95th percentile instead of
 /// several). If a face ends flipped that was not (nothing untangles after this pass), the pass is undone.
+/// ParameterError if `fixed` does not have one entry per vertex.
 void refine_along_field(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,
                         const std::vector<Eigen::Vector3d>& surface_directions, int iterations,
                         const std::vector<char>& fixed, double skip_degrees = 18.0);
