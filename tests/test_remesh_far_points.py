@@ -32,11 +32,16 @@ def test_fit_moves_vertices_onto_the_cut_rim_and_keeps_the_faces(leaf):
     print({k: (a[k], b[k]) for k in ("hausdorff_relative", "distance_to_input", "alignment_mean_deg",
                                      "min_scaled_jacobian")}, far)
     assert a["far_points"]["passes"] == 0 and a["far_points"]["moves"] == 0
-    # Only positions change: the same faces, the same irregular vertices, and few vertices moved (each move
-    # is a vertex, or a vertex and its neighbours: at most 9 on a quad mesh).
+    # Only positions change: the same faces, the same irregular vertices.
     assert fitted.faces == plain.faces and b["irregular_vertices"] == a["irregular_vertices"]
-    moved = np.flatnonzero(np.linalg.norm(fitted.vertices - plain.vertices, axis=1) > 0)
-    assert 0 < far["moves"] and len(moved) <= 9 * far["moves"]
+    # The fit itself moves few vertices (each move is a vertex, or a vertex and its neighbours: at most 9 on
+    # a quad mesh). The default pipeline relaxes every vertex once more after it (refine_along_field), so
+    # the fit is seen alone with the relaxation along the field off: 65 vertices for 20 moves measured.
+    bare_plain = quad_remesh(mesh, field, target_faces=400, fit_far_points=False, field_relax_iterations=0)
+    bare = quad_remesh(mesh, field, target_faces=400, field_relax_iterations=0)
+    moved = np.flatnonzero(np.linalg.norm(bare.vertices - bare_plain.vertices, axis=1) > 0)
+    assert 0 < bare.stats["far_points"]["moves"] and len(moved) <= 9 * bare.stats["far_points"]["moves"]
+    assert 0 < far["moves"]
     # The farthest input vertex comes closer (measured 0.145 -> 0.072: 0.50x in six passes; a move is kept
     # only if no input point of its neighbourhood ends farther than the farthest was, so this can only fall).
     assert far["farthest_after"] < 0.75 * far["farthest_before"]

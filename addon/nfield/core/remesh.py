@@ -295,7 +295,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     relax_iterations : smoothing steps (towards face centroids, then back onto the surface) after extraction.
     field_relax_iterations : relaxation along the field before the last untangling step: up to 3 global
         least-squares solves moving the vertices so that their edges run along the field, then this many
-        local steps (each back onto the surface); 0 skips it.
+        local steps (each back onto the surface); after the far-point fit, once more with up to 3 of each
+        (the fit's moved vertices held); 0 skips both.
     strict : True refuses (ValueError) a mesh with a component too small for the edge length; False
         leaves such components out and lists them in ``stats["messages"]``.
     cancel_position_singularities : pair the lattice's row ends (dislocations) with each other, with the

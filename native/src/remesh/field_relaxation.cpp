@@ -3,7 +3,9 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
+#include <string>
 
+#include "nfield/errors.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 #include "nfield/remesh/remesh_surface.hpp"
 
@@ -15,13 +17,13 @@ namespace {
 constexpr double kFloor = 0.2;
 /// Outer iterations of the global solve (at most; `iterations` if fewer).
 constexpr int kGlobalIterations = 3;
-/// Weights of the energy (field_relaxation.hpp), relative to the off-axis term of an edge: the change of an
-/// edge's part along its axis (keeps the rows from sliding together) ...
-constexpr double kLengthWeight = 0.1;
-/// ... and each vertex's displacement, in units of the median edge length (keeps the system definite).
-constexpr double kProximityWeight = 0.02;
-/// Scale of the reweighting of the off-axis term: an edge at angle a counts eps / sqrt(sin^2 a + eps^2).
-constexpr double kRobustScale = 0.2;
+/// The energy's weights (field_relaxation.hpp), relative to the off-axis term of an edge.
+struct EnergyWeights {
+  double length;     ///< the change of an edge's part along its axis (keeps the rows from sliding together)
+  double proximity;  ///< each vertex's displacement, in median edge lengths (keeps the system definite)
+  double robust;     ///< eps of the reweighting: an edge at angle a counts eps / sqrt(sin^2 a + eps^2)
+};
+constexpr EnergyWeights kWeights{0.1, 0.02, 0.2};
 /// A face may leave the input by up to this share of the largest distance of any face before the step (or
 /// by its own distance before, if larger): the solve must not raise the distance to the input.
 constexpr double kDeviationShare = 0.7;
@@ -50,23 +52,34 @@ bool field_axes_near(const ProjectionTargets& targets, const std::vector<Vec3>& 
   return true;
 }
 
-/// Per face, the largest distance to the input of its centroid and edge midpoints (its vertices lie on the
+/// The largest distance to the input of face f's centroid and edge midpoints (its vertices lie on the
 /// input): how far the face leaves the surface.
-std::vector<double> face_deviations(const PolygonMesh& mesh, const ProjectionTargets& targets) {
-  std::vector<double> out(mesh.num_faces(), 0.0);
-  for (int f = 0; f < mesh.num_faces(); ++f) {
-    const int k = mesh.face_size(f);
-    const int* v = mesh.face(f);
-    Vec3 c = Vec3::Zero();
-    double worst = 0;
-    for (int i = 0; i < k; ++i) {
-      c += mesh.positions[v[i]];
-      worst = std::max(worst, targets.surface.closest(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]])).squared_distance);
-    }
-    worst = std::max(worst, targets.surface.closest(c / k).squared_distance);
-    out[f] = std::sqrt(worst);
+double face_deviation(const PolygonMesh& mesh, int f, const ProjectionTargets& targets) {
+  const int k = mesh.face_size(f);
+  const int* v = mesh.face(f);
+  Vec3 c = Vec3::Zero();
+  double worst = 0;
+  for (int i = 0; i < k; ++i) {
+    c += mesh.positions[v[i]];
+    worst = std::max(worst, targets.surface.closest(0.5 * (mesh.positions[v[i]] + mesh.positions[v[(i + 1) % k]])).squared_distance);
   }
-  return out;
+  worst = std::max(worst, targets.surface.closest(c / k).squared_distance);
+  return std::sqrt(worst);
+}
+
+/// Per face, its worst corner (scaled Jacobian) and, if `deviation` is given, face_deviation. Only the faces
+/// with a vertex marked in `changed` are measured again (the others keep their values: each depends on its
+/// own vertices only); all of them when `changed` is null.
+void measure_faces(const PolygonMesh& mesh, const ProjectionTargets& targets, const std::vector<char>* changed,
+                   std::vector<double>& worst, std::vector<double>* deviation) {
+  worst.resize(mesh.num_faces());
+  if (deviation) deviation->resize(mesh.num_faces());
+  for (int f = 0; f < mesh.num_faces(); ++f) {
+    const int* v = mesh.face(f);
+    if (changed && std::none_of(v, v + mesh.face_size(f), [&](int u) { return (*changed)[u] != 0; })) continue;
+    worst[f] = worst_corner_on(mesh, f, targets);
+    if (deviation) (*deviation)[f] = face_deviation(mesh, f, targets);
+  }
 }
 
 double median_edge_length(const PolygonMesh& mesh, const std::vector<std::array<int, 2>>& edges) {
@@ -78,10 +91,14 @@ double median_edge_length(const PolygonMesh& mesh, const std::vector<std::array<
   return lengths[lengths.size() / 2];
 }
 
+/// `iterations` Jacobi steps (field_relaxation.hpp). Vertices marked in `fixed` (if given) stay; edges whose
+/// off-axis part exceeds `skip_sine` times their length (if below 1) pull neither end.
 void local_steps(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
-                 const std::vector<Vec3>& surface_directions, int iterations) {
+                 const std::vector<Vec3>& surface_directions, int iterations, const std::vector<char>* fixed,
+                 double skip_sine) {
   const int V = mesh.num_vertices();
   const std::vector<std::array<int, 2>> edges = unique_edges(mesh);
+  std::vector<double> worst;  // each face's worst corner at the current positions
   for (int it = 0; it < iterations; ++it) {
     std::vector<Vec3> move(V, Vec3::Zero());
     std::vector<int> count(V, 0);
@@ -93,6 +110,7 @@ void local_steps(PolygonMesh& mesh, const std::vector<char>& kind, const Project
                            across))
         continue;
       const Vec3 off = d - d.dot(axis) * axis;  // the edge less its part along the nearer axis
+      if (off.norm() > skip_sine * d.norm()) continue;
       // e[0] moves by +off (its edge becomes d - off), e[1] by -off.
       move[e[0]] += off;
       move[e[1]] -= off;
@@ -100,28 +118,35 @@ void local_steps(PolygonMesh& mesh, const std::vector<char>& kind, const Project
       ++count[e[1]];
     }
     const std::vector<Vec3> before = mesh.positions;
-    const std::vector<double> worst_before = scaled_jacobians_on(mesh, targets);
+    if (it == 0) measure_faces(mesh, targets, nullptr, worst, nullptr);
+    const std::vector<double> worst_before = worst;
     std::vector<char> frozen(V, 0);  // vertices of faces already poor: left to the untangling step
     for (int f = 0; f < mesh.num_faces(); ++f)
       if (worst_before[f] < kFloor)
         for (int i = 0; i < mesh.face_size(f); ++i) frozen[mesh.face(f)[i]] = 1;
     for (int v = 0; v < V; ++v)
-      if (count[v] && kind[v] == kNoFeature && !frozen[v]) mesh.positions[v] += 0.25 * move[v] / count[v];
+      if (count[v] && kind[v] == kNoFeature && !frozen[v] && !(fixed && (*fixed)[v]))
+        mesh.positions[v] += 0.25 * move[v] / count[v];
     project_vertices(mesh, kind, targets);
+    std::vector<char> changed(V, 0);
+    for (int v = 0; v < V; ++v) changed[v] = mesh.positions[v] != before[v];
     // Guard: a face whose worst corner dropped below kFloor (and below where it was) gets its vertices back,
     // until no face does.
     for (int pass = 0; pass < 10; ++pass) {
+      measure_faces(mesh, targets, &changed, worst, nullptr);
+      std::fill(changed.begin(), changed.end(), 0);
       bool reverted = false;
-      const std::vector<double> worst = scaled_jacobians_on(mesh, targets);
       for (int f = 0; f < mesh.num_faces(); ++f) {
         if (worst[f] >= kFloor || worst[f] >= worst_before[f]) continue;
         for (int i = 0; i < mesh.face_size(f); ++i) {
           const int v = mesh.face(f)[i];
-          if (mesh.positions[v] != before[v]) mesh.positions[v] = before[v], reverted = true;
+          if (mesh.positions[v] != before[v]) mesh.positions[v] = before[v], changed[v] = 1, reverted = true;
         }
       }
       if (!reverted) break;
     }
+    // After the last pass reverted vertices, the faces around them are measured again for the next step.
+    measure_faces(mesh, targets, &changed, worst, nullptr);
   }
 }
 
@@ -145,26 +170,55 @@ double off_axis_energy(const PolygonMesh& mesh, const ProjectionTargets& targets
 void relax_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
                        const std::vector<Vec3>& surface_directions, int iterations) {
   solve_along_field(mesh, kind, targets, surface_directions, std::min(iterations, kGlobalIterations));
-  local_steps(mesh, kind, targets, surface_directions, iterations);
+  local_steps(mesh, kind, targets, surface_directions, iterations, nullptr, 1.0);
+}
+
+void refine_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
+                        const std::vector<Vec3>& surface_directions, int iterations, const std::vector<char>& fixed,
+                        double skip_degrees) {
+  if (static_cast<int>(fixed.size()) != mesh.num_vertices())
+    throw ParameterError("refine_along_field: `fixed` needs one entry per vertex (" +
+                         std::to_string(mesh.num_vertices()) + "), got " + std::to_string(fixed.size()));
+  const int n = std::min(iterations, kGlobalIterations);
+  if (n <= 0) return;
+  // Both parts keep every face at least as valid as it was or above kFloor; as nothing runs after this
+  // pass to untangle, a face it would still flip (none on the benchmark meshes) undoes the whole pass.
+  const std::vector<Vec3> start = mesh.positions;
+  const std::vector<double> worst_start = scaled_jacobians_on(mesh, targets);
+  solve_along_field(mesh, kind, targets, surface_directions, n, &fixed);
+  const double skip_sine = skip_degrees < 45 ? std::sin(skip_degrees * 3.14159265358979323846 / 180) : 1.0;
+  local_steps(mesh, kind, targets, surface_directions, n, &fixed, skip_sine);
+  const std::vector<double> worst = scaled_jacobians_on(mesh, targets);
+  for (int f = 0; f < mesh.num_faces(); ++f)
+    if (worst[f] <= 0 && worst_start[f] > 0) {
+      mesh.positions = start;
+      return;
+    }
 }
 
 void solve_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
-                       const std::vector<Vec3>& surface_directions, int iterations) {
+                       const std::vector<Vec3>& surface_directions, int iterations, const std::vector<char>* fixed) {
   const int V = mesh.num_vertices();
   const std::vector<std::array<int, 2>> edges = unique_edges(mesh);
   if (edges.empty()) return;
   const double s = median_edge_length(mesh, edges);
   if (!(s > 0)) return;
+  // Each face's worst corner and distance from the input at the current positions, kept up to date.
+  std::vector<double> worst, deviation;
+  measure_faces(mesh, targets, nullptr, worst, &deviation);
   for (int it = 0; it < iterations; ++it) {
     const std::vector<Vec3> before = mesh.positions;
-    const std::vector<double> worst_before = scaled_jacobians_on(mesh, targets);
-    const std::vector<double> deviation_before = face_deviations(mesh, targets);
+    const std::vector<double> worst_before = worst;
+    const std::vector<double> deviation_before = deviation;
     const double deviation_allowed = kDeviationShare * *std::max_element(deviation_before.begin(), deviation_before.end());
     // Free vertices: on an edge, not on a face with a feature vertex (next to a crease a move along the field
     // can fold a face over it), not on a face already poor (worst corner below kFloor: those are the
     // untangling step's), nor on a face next to a flipped one.
     std::vector<char> free(V, 0);
     for (const auto& e : edges) free[e[0]] = free[e[1]] = 1;
+    if (fixed)
+      for (int v = 0; v < V; ++v)
+        if ((*fixed)[v]) free[v] = 0;
     for (int f = 0; f < mesh.num_faces(); ++f)
       if (std::any_of(mesh.face(f), mesh.face(f) + mesh.face_size(f), [&](int v) { return kind[v] != kNoFeature; }))
         for (int i = 0; i < mesh.face_size(f); ++i) free[mesh.face(f)[i]] = 0;
@@ -195,11 +249,11 @@ void solve_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const P
       n += 2;
     }
     if (n == 0) return;
-    // Least squares: each edge contributes w_e (across . (d + u_j - u_i))^2 and w_e kLengthWeight
-    // (axis . (u_j - u_i))^2, lengths in units of s; each vertex kProximityWeight |u|^2.
+    // Least squares: each edge contributes w_e (across . (d + u_j - u_i))^2 and w_e kWeights.length
+    // (axis . (u_j - u_i))^2, lengths in units of s; each vertex kWeights.proximity |u|^2.
     std::vector<Eigen::Triplet<double>> triplets;
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(n);
-    for (int i = 0; i < n; ++i) triplets.emplace_back(i, i, kProximityWeight);
+    for (int i = 0; i < n; ++i) triplets.emplace_back(i, i, kWeights.proximity);
     auto add_row = [&](const Vec3& direction, const std::array<int, 2>& e, double target, double weight) {
       // Row r . x = target with r having -direction . b on e[0]'s unknowns and +direction . b on e[1]'s;
       // fixed vertices contribute nothing (their displacement is zero).
@@ -229,9 +283,10 @@ void solve_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const P
       // than one nearly aligned: iteratively reweighted least squares, towards the sum of |sin a|.
       const double length = std::max(d.norm(), 0.3);
       const double sine = std::abs(d.dot(across)) / d.norm();
-      const double w = kRobustScale / std::sqrt(sine * sine + kRobustScale * kRobustScale) / (length * length);
+      const double eps = kWeights.robust;
+      const double w = eps / std::sqrt(sine * sine + eps * eps) / (length * length);
       add_row(across, e, -d.dot(across), w);
-      add_row(axis, e, 0.0, kLengthWeight * w);
+      add_row(axis, e, 0.0, kWeights.length * w);
     }
     Eigen::SparseMatrix<double> H(n, n);
     H.setFromTriplets(triplets.begin(), triplets.end());
@@ -259,11 +314,12 @@ void solve_along_field(PolygonMesh& mesh, const std::vector<char>& kind, const P
     // vertices are all back is as it was).
     const std::vector<Vec3> goal = mesh.positions;
     std::vector<double> share(V, 1.0);
+    std::vector<char> shortened(V, 0);
+    for (int v = 0; v < V; ++v) shortened[v] = mesh.positions[v] != before[v];  // to measure again
     while (true) {
-      std::vector<char> shortened(V, 0);
+      measure_faces(mesh, targets, &shortened, worst, &deviation);
+      std::fill(shortened.begin(), shortened.end(), 0);
       bool any = false;
-      const std::vector<double> worst = scaled_jacobians_on(mesh, targets);
-      const std::vector<double> deviation = face_deviations(mesh, targets);
       for (int f = 0; f < mesh.num_faces(); ++f) {
         const bool folds = worst[f] < kFloor && worst[f] < worst_before[f];
         const bool leaves = deviation[f] > std::max(deviation_before[f], deviation_allowed);

@@ -475,8 +475,15 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
   }
   // 9. Vertices moved onto the input points the output misses (far_point_fit.hpp): after the untangling, so
   //    that its guard (no face's worst corner below 0.05 or its own) keeps every face as valid as it was.
+  const std::vector<Vec3> before_fit = result.mesh.positions;
   if (options.fit_far_points)
     result.far_points = fit_far_points(result.mesh, result.vertex_feature_kind, targets, options.edge_length);
+  // 10. The relaxation along the field once more, now that the untangling has mended the faces whose
+  //     vertices it held back, the vertices the fit moved held so that the distance they gained stays.
+  std::vector<char> fit_moved(result.mesh.num_vertices(), 0);
+  for (int v = 0; v < result.mesh.num_vertices(); ++v) fit_moved[v] = result.mesh.positions[v] != before_fit[v];
+  refine_along_field(result.mesh, result.vertex_feature_kind, targets, directions, options.field_relax_iterations,
+                     fit_moved);
   if (result.untangle.flipped_after)
     result.messages.push_back(std::to_string(result.untangle.flipped_after) +
                               " face(s) are still flipped (a corner turned against the surface): the target is too "

@@ -40,9 +40,22 @@ namespace nfield::remesh {
 void relax_along_field(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,
                        const std::vector<Eigen::Vector3d>& surface_directions, int iterations);
 
-/// The global solve alone, `iterations` outer iterations.
+/// The last pass, after the untangling and the far-point fit: min(`iterations`, 3) solve iterations and as
+/// many local steps, the vertices marked in `fixed` (one entry per vertex) held where they are (the far-point
+/// fit's moves keep their distance gain) while their neighbours re-align. Its local steps leave out the edges
+/// more than `skip_degrees` off their axis (18 by default; 45 or more: none left out): next to an irregular
+/// vertex no placement aligns every edge, and such an edge's share of the mean would bend the aligned edges
+/// of the vertex it pulls; left out, it keeps its error alone (one edge in the 95th percentile instead of
+/// several). If a face ends flipped that was not (nothing untangles after this pass), the pass is undone.
+/// ParameterError if `fixed` does not have one entry per vertex.
+void refine_along_field(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,
+                        const std::vector<Eigen::Vector3d>& surface_directions, int iterations,
+                        const std::vector<char>& fixed, double skip_degrees = 18.0);
+
+/// The global solve alone, `iterations` outer iterations; the vertices marked in `fixed` (if given) stay.
 void solve_along_field(PolygonMesh& mesh, const std::vector<char>& feature_kind, const ProjectionTargets& targets,
-                       const std::vector<Eigen::Vector3d>& surface_directions, int iterations);
+                       const std::vector<Eigen::Vector3d>& surface_directions, int iterations,
+                       const std::vector<char>* fixed = nullptr);
 
 /// The energy the solve lowers, without its weights: sum over the edges of sin^2 of each edge's angle to
 /// the nearer field axis at its midpoint (edges where the field is zero left out). For tests and diagnostics.

@@ -42,7 +42,7 @@ struct QuadRemeshOptions {
   int iterations = 10;               ///< Gauss-Seidel sweeps per hierarchy level
   int max_face_size = 12;            ///< larger extracted faces are dropped
   int relax_iterations = 2;          ///< relaxation steps after extraction (and after subdivision)
-  int field_relax_iterations = 6;    ///< steps of relaxation along the field before the last step (field_relaxation.hpp)
+  int field_relax_iterations = 6;    ///< steps of relaxation along the field (field_relaxation.hpp; the last pass: <= 3)
   bool refuse_small_components = false;  ///< true: a component too small for the target is an error
   bool cancel_position_singularities = true;  ///< min-cost flow on the integer offsets (position_singularities.hpp)
   /// Pure quads by pairing only: 1 pins every field singularity to a lattice point (a vertex-centred cone:
