@@ -105,11 +105,8 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
   std::vector<int> nearest_face(points.size());
   for (int pass = 0; pass <= passes; ++pass) {
     // Distances of the input vertices to the output, and the output face each is nearest to.
-    const auto tris = fan_triangulate(mesh);
     std::vector<int> tri_face;
-    tri_face.reserve(tris.size());
-    for (int f = 0; f < mesh.num_faces(); ++f)
-      for (int i = 1; i + 1 < mesh.face_size(f); ++i) tri_face.push_back(f);
+    const auto tris = fan_triangulate(mesh, &tri_face);
     const TriangleTree out(mesh.positions, tris);
     double farthest = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {

@@ -8,11 +8,8 @@ namespace nfield::remesh {
 int choose_quad_diagonals(PolygonMesh& mesh, const TriangleTree& surface, double margin) {
   if (surface.empty() || mesh.num_faces() == 0) return 0;
   // The input points each output face serves (is the nearest face to), for the input -> output side.
-  const auto tris = fan_triangulate(mesh);
   std::vector<int> tri_face;
-  tri_face.reserve(tris.size());
-  for (int f = 0; f < mesh.num_faces(); ++f)
-    for (int i = 1; i + 1 < mesh.face_size(f); ++i) tri_face.push_back(f);
+  const auto tris = fan_triangulate(mesh, &tri_face);
   const TriangleTree output(mesh.positions, tris);
   const std::vector<Vec3>& points = surface.vertices();
   std::vector<std::vector<int>> served(mesh.num_faces());
