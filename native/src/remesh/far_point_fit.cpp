@@ -230,8 +230,6 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
                 if (h.triangle >= 0) moves.emplace_back(u, h.point);
               }
             }
-            std::vector<Vec3> was(moves.size());
-            for (std::size_t k = 0; k < moves.size(); ++k) was[k] = mesh.positions[moves[k].first];
             for (const auto& [u, p] : moves) mesh.positions[u] = p;
             // Neither side may get a new worst point: the input side none above its old worst, the output side
             // none above its old worst or the tolerance.
