@@ -438,3 +438,39 @@ def cyclic_rotate_faces(F, seed: int = 0):
     k = np.random.default_rng(seed).integers(0, 3, len(F))
     idx = (np.arange(3)[None, :] + k[:, None]) % 3
     return np.take_along_axis(F, idx, axis=1)
+
+
+def box(k: int = 4, other_diagonal_below: bool = False):
+    """Closed cube [-1, 1]^3, each side a k x k grid of quads split into triangles, outward normals.
+    other_diagonal_below: the three sides facing -x, -y, -z split their quads along the other diagonal."""
+    verts: dict[tuple, int] = {}
+    V: list = []
+    F: list = []
+
+    def vid(p):
+        key = tuple(np.round(p, 12))
+        if key not in verts:
+            verts[key] = len(V)
+            V.append(p)
+        return verts[key]
+
+    t = np.linspace(-1, 1, k + 1)
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            u_ax, v_ax = [a for a in range(3) if a != axis]
+            for i in range(k):
+                for j in range(k):
+                    quad = []
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        p = np.zeros(3)
+                        p[axis] = sign
+                        p[u_ax], p[v_ax] = t[i + di], t[j + dj]
+                        quad.append(vid(p))
+                    a, b, c, d = quad if not (other_diagonal_below and sign < 0) else quad[1:] + quad[:1]
+                    tri = [(a, b, c), (a, c, d)]
+                    # orient outward: normal of (a, b, c) must point along sign * e_axis
+                    P = [np.array(V[x]) for x in tri[0]]
+                    if np.cross(P[1] - P[0], P[2] - P[0])[axis] * sign < 0:
+                        tri = [(a, c, b), (a, d, c)]
+                    F += tri
+    return np.array(V, dtype=float), np.array(F, dtype=np.int64)

@@ -28,41 +28,6 @@ nfield_core = pytest.importorskip("nfield.core")
 from nfield.core import Mesh, native  # noqa: E402
 
 
-def box(k: int = 4):
-    """Closed cube [-1, 1]^3, each side a k x k grid of quads split into triangles, outward normals."""
-    verts: dict[tuple, int] = {}
-    V: list = []
-    F: list = []
-
-    def vid(p):
-        key = tuple(np.round(p, 12))
-        if key not in verts:
-            verts[key] = len(V)
-            V.append(p)
-        return verts[key]
-
-    t = np.linspace(-1, 1, k + 1)
-    for axis in range(3):
-        for sign in (-1.0, 1.0):
-            u_ax, v_ax = [a for a in range(3) if a != axis]
-            for i in range(k):
-                for j in range(k):
-                    quad = []
-                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
-                        p = np.zeros(3)
-                        p[axis] = sign
-                        p[u_ax], p[v_ax] = t[i + di], t[j + dj]
-                        quad.append(vid(p))
-                    a, b, c, d = quad
-                    tri = [(a, b, c), (a, c, d)]
-                    # orient outward: normal of (a, b, c) must point along sign * e_axis
-                    P = [np.array(V[x]) for x in tri[0]]
-                    if np.cross(P[1] - P[0], P[2] - P[0])[axis] * sign < 0:
-                        tri = [(a, c, b), (a, d, c)]
-                    F += tri
-    return np.array(V, dtype=float), np.array(F, dtype=np.int64)
-
-
 def geometry(V, F):
     mesh = Mesh(V, F)
     return mesh, native().GuideGeometry(mesh.native)
@@ -71,7 +36,7 @@ def geometry(V, F):
 # ---------------------------------------------------------------------------------------- features
 def test_cube_features_edges_corners_chains():
     k = 4
-    mesh, g = geometry(*box(k))
+    mesh, g = geometry(*meshgen.box(k))
     angles = np.degrees(np.asarray(g.dihedral_angles()))
     # Exact geometry: cube edges bend by 90 degrees, everything else is flat (rounding only).
     assert np.sum(np.abs(angles - 90) < 1e-9) == 12 * k

@@ -150,8 +150,9 @@ void bind_remesh(py::module_& m) {
                             "cones_tried", pq.cones_tried, "irregular_free_cones", pq.irregular_free_cones,
                             "irregular_pinned_cones", pq.irregular_pinned_cones);
     const FarPointFitReport& fp = r.far_points;
-    d["far_points"] = named("passes", fp.passes, "moves", fp.moves, "farthest_before",
+    d["far_points"] = named("passes", fp.passes, "moves", fp.moves, "pair_moves", fp.pair_moves, "farthest_before",
                             fp.farthest_before, "farthest_after", fp.farthest_after, "seconds", fp.seconds);
+    d["rotated_diagonals"] = r.rotated_diagonals;
     d["seconds"] = named("setup", r.seconds_setup, "hierarchy", r.seconds_hierarchy, "positions", r.seconds_positions,
                          "flow", r.seconds_flow, "resolve", r.seconds_resolve, "extraction", r.seconds_extraction);
     return d;

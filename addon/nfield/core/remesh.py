@@ -305,8 +305,11 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         the counts before and after. False keeps the position field as optimised.
     fit_far_points : move output vertices onto the input points the output misses by more than a quarter
         of the edge length (tips of toes and fingers one or two quads thick, rounded edges crossed as a chord),
-        when that brings the output closer to the input on both sides and leaves no face's corner poor;
+        when that brings the output closer to the input on both sides and leaves no face's corner poor (at a
+        crease point, a vertex put on it may take a face neighbour along to what it uncovers);
         ``stats["far_points"]`` reports the moves and the farthest input vertex before and after.
+        Independently of this option every quad is then split (its first vertex chosen) along the diagonal
+        nearer the input, the split Blender draws; ``stats["rotated_diagonals"]`` counts the quads turned.
     split_thin_clusters : split an output vertex whose surface points wrap round a part thinner than a
         lattice cell (a finger, a claw) into one vertex per side, so that its edges do not cut through the part;
         ``stats["extraction"]["split_clusters"]`` counts them.
@@ -393,6 +396,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "pure_quad_conversion": dict(r["pure_quads"]),
         "position_singularities": dict(r["position_singularities"]),
         "far_points": dict(r["far_points"]),
+        "rotated_diagonals": int(r["rotated_diagonals"]),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),

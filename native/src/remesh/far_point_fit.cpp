@@ -1,6 +1,7 @@
 #include "nfield/remesh/far_point_fit.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -23,6 +24,8 @@ constexpr double kGain = 0.02;
 constexpr int kAttempts = 8;
 /// Of the moves that help, the smallest whose gain is at least this fraction of the best one's is made.
 constexpr double kNearlyBest = 0.8;
+/// Face neighbours tried as the second vertex of a pair move (nearest to the point the first one uncovered).
+constexpr std::size_t kPartners = 3;
 
 double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   return (p - closest_point_on_triangle(p, a, b, c)).norm();
@@ -65,23 +68,45 @@ void faces_to_input(const PolygonMesh& mesh, const std::vector<int>& faces, cons
     for (const Vec3& p : face_samples(mesh, f)) e.add(std::sqrt(input.closest(p).squared_distance), tolerance);
 }
 
+/// Per vertex of the projection surface: 1 when an edge at it joins two triangles whose normals differ by more
+/// than `angle_degrees` (none when it is <= 0).
+std::vector<char> crease_points(const ProjectionTargets& targets, double angle_degrees) {
+  const auto& triangles = targets.surface.triangles();
+  std::vector<char> out(targets.surface.vertices().size(), 0);
+  if (!(angle_degrees > 0) || targets.surface_normals.face.size() != triangles.size()) return out;
+  std::vector<std::array<int, 3>> edges;  // (smaller end, larger end, triangle)
+  edges.reserve(3 * triangles.size());
+  for (int t = 0; t < static_cast<int>(triangles.size()); ++t)
+    for (int m = 0; m < 3; ++m) {
+      const int a = triangles[t][m], b = triangles[t][(m + 1) % 3];
+      edges.push_back({std::min(a, b), std::max(a, b), t});
+    }
+  std::sort(edges.begin(), edges.end());
+  const double cos_angle = std::cos(angle_degrees * 3.14159265358979323846 / 180);
+  for (std::size_t i = 0; i + 1 < edges.size(); ++i) {
+    if (edges[i][0] != edges[i + 1][0] || edges[i][1] != edges[i + 1][1]) continue;
+    const Vec3& n0 = targets.surface_normals.face[edges[i][2]];
+    const Vec3& n1 = targets.surface_normals.face[edges[i + 1][2]];
+    if (n0.dot(n1) < cos_angle) out[edges[i][0]] = out[edges[i][1]] = 1;
+  }
+  return out;
+}
+
 }  // namespace
 
 FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kind, const ProjectionTargets& targets,
-                                 double s, int passes, double threshold) {
+                                 double s, double crease_angle_degrees, int passes, double threshold) {
   const auto start = std::chrono::steady_clock::now();
   FarPointFitReport report;
   const std::vector<Vec3>& points = targets.surface.vertices();
   if (points.empty() || mesh.num_faces() == 0 || !(s > 0)) return report;
+  const std::vector<char> on_crease = crease_points(targets, crease_angle_degrees);
   std::vector<double> distance(points.size());
   std::vector<int> nearest_face(points.size());
   for (int pass = 0; pass <= passes; ++pass) {
     // Distances of the input vertices to the output, and the output face each is nearest to.
-    const auto tris = fan_triangulate(mesh);
     std::vector<int> tri_face;
-    tri_face.reserve(tris.size());
-    for (int f = 0; f < mesh.num_faces(); ++f)
-      for (int i = 1; i + 1 < mesh.face_size(f); ++i) tri_face.push_back(f);
+    const auto tris = fan_triangulate(mesh, &tri_face);
     const TriangleTree out(mesh.positions, tris);
     double farthest = 0;
     for (std::size_t i = 0; i < points.size(); ++i) {
@@ -123,14 +148,15 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
       double distance;
       int face;        ///< output face nearest to it / the face itself
       bool toward;     ///< true: move towards `to`; false: move by to - from
+      bool crease;     ///< `to` is an input point on a crease
       Vec3 from, to;
     };
     std::vector<Far> order;
     for (int i = 0; i < static_cast<int>(points.size()); ++i)
       if (distance[i] > threshold * s && nearest_face[i] >= 0)
-        order.push_back({distance[i], nearest_face[i], true, points[i], points[i]});
+        order.push_back({distance[i], nearest_face[i], true, on_crease[i] != 0, points[i], points[i]});
     for (int f = 0; f < mesh.num_faces(); ++f) {
-      Far worst{0, f, false, Vec3::Zero(), Vec3::Zero()};
+      Far worst{0, f, false, false, Vec3::Zero(), Vec3::Zero()};
       for (const Vec3& y : face_samples(mesh, f)) {
         const auto hit = targets.surface.closest(y);
         const double d = std::sqrt(hit.squared_distance);
@@ -158,6 +184,7 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
       struct Option {
         double gain, displacement;
         std::vector<std::pair<int, Vec3>> moves;
+        bool pair = false;  ///< a vertex on a crease point and a face neighbour towards what it uncovered
       };
       std::vector<Option> options;
       for (int v : cands) {
@@ -203,19 +230,57 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
                 if (h.triangle >= 0) moves.emplace_back(u, h.point);
               }
             }
-            std::vector<Vec3> was(moves.size());
-            for (std::size_t k = 0; k < moves.size(); ++k) was[k] = mesh.positions[moves[k].first];
             for (const auto& [u, p] : moves) mesh.positions[u] = p;
-            if (corners_kept()) {
-              const auto [in_after, out_after] = local_j();
+            // Neither side may get a new worst point: the input side none above its old worst, the output side
+            // none above its old worst or the tolerance.
+            auto consider = [&](const std::vector<std::pair<int, Vec3>>& tried_moves, const Excess& in_after,
+                                const Excess& out_after, bool pair) {
               const double gain = in_before.energy + out_before.energy - in_after.energy - out_after.energy;
               double displacement = 0;
-              for (std::size_t k = 0; k < moves.size(); ++k) displacement += (moves[k].second - was[k]).norm();
-              // Neither side may get a new worst point: the input side none above its old worst, the output side
-              // none above its old worst or the tolerance.
-              if (in_after.worst <= in_before.worst &&
-                  out_after.worst <= std::max(out_before.worst, threshold * s) &&
-                  gain > kGain * (in_before.energy + out_before.energy)) options.push_back({gain, displacement, moves});
+              for (const auto& [u, p] : tried_moves)
+                displacement += (p - saved[std::find(group.begin(), group.end(), u) - group.begin()]).norm();
+              if (in_after.worst <= in_before.worst && out_after.worst <= std::max(out_before.worst, threshold * s) &&
+                  gain > kGain * (in_before.energy + out_before.energy))
+                options.push_back({gain, displacement, tried_moves, pair});
+            };
+            if (corners_kept()) {
+              const auto [in_after, out_after] = local_j();
+              consider(moves, in_after, out_after, false);
+              // The vertex alone on the missed point can leave the points it reached before farther than the
+              // missed one was (a ridge of creases: the vertex between the tip and the ridge's foot served
+              // both): then a face neighbour of it moves towards the farthest of them, a pair move.
+              if (item.toward && item.crease && follow == 0 && in_after.worst > in_before.worst &&
+                  !served.empty()) {
+                int uncovered = served.front();
+                double farthest = -1;
+                for (int p : served) {
+                  const double d = distance_to_faces(mesh, ring, points[p]);
+                  if (d > farthest) farthest = d, uncovered = p;
+                }
+                const Vec3& y = points[uncovered];
+                std::vector<int> partners;
+                for (int u : group)
+                  if (u != v) partners.push_back(u);
+                std::sort(partners.begin(), partners.end(), [&](int a, int b) {
+                  return (mesh.positions[a] - y).squaredNorm() < (mesh.positions[b] - y).squaredNorm();
+                });
+                if (partners.size() > kPartners) partners.resize(kPartners);
+                for (int u : partners) {
+                  const Vec3 from = mesh.positions[u];
+                  for (const double t2 : {1.0, 0.5, 0.25}) {
+                    const auto h = targets.surface.closest(from + t2 * (y - from));
+                    if (h.triangle < 0) continue;
+                    mesh.positions[u] = h.point;
+                    if (corners_kept()) {
+                      const auto [in_pair, out_pair] = local_j();
+                      std::vector<std::pair<int, Vec3>> pair = moves;
+                      pair.emplace_back(u, h.point);
+                      consider(pair, in_pair, out_pair, true);
+                    }
+                  }
+                  mesh.positions[u] = from;
+                }
+              }
             }
             for (std::size_t k = 0; k < group.size(); ++k) mesh.positions[group[k]] = saved[k];
           }
@@ -232,6 +297,7 @@ FarPointFitReport fit_far_points(PolygonMesh& mesh, const std::vector<char>& kin
       for (const Option& o : options)
         if (o.gain >= kNearlyBest * best_gain && (!chosen || o.displacement < chosen->displacement)) chosen = &o;
       const auto& best_moves = chosen->moves;
+      if (chosen->pair) ++report.pair_moves;
       std::vector<int> touched;
       for (const auto& [u, p] : best_moves) mesh.positions[u] = p, touched.push_back(u);
       for (int f : faces_around(vertices_of(faces_around(touched)))) dirty[f] = 1;

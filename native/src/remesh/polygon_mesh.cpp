@@ -329,12 +329,16 @@ PolygonMesh subdivide_to_quads(const PolygonMesh& mesh, std::vector<int>* kind,
   return out;
 }
 
-std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh) {
+std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh, std::vector<int>* triangle_face) {
   std::vector<std::array<int, 3>> tris;
+  if (triangle_face) triangle_face->clear();
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const int k = mesh.face_size(f);
     const int* v = mesh.face(f);
-    for (int i = 1; i + 1 < k; ++i) tris.push_back({v[0], v[i], v[i + 1]});
+    for (int i = 1; i + 1 < k; ++i) {
+      tris.push_back({v[0], v[i], v[i + 1]});
+      if (triangle_face) triangle_face->push_back(f);
+    }
   }
   return tris;
 }

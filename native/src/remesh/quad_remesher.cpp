@@ -188,6 +188,10 @@ constexpr double kPinnedConeCost = 3;
 /// kept for its fewer irregular vertices: 10%, about the spread of that distance between seeds.
 constexpr double kPinnedDistanceSlack = 1.1;
 
+/// A quad's other diagonal is taken when it fits the input closer by this fraction of the edge length: a flat
+/// quad's two splits differ by rounding only, and its face is left as it is.
+constexpr double kDiagonalMargin = 0.01;
+
 bool component_fits(double area, double diagonal, double s) { return area >= 3 * s * s && diagonal >= 2 * s; }
 
 void check_options(const QuadRemeshOptions& o) {
@@ -477,13 +481,17 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
   //    that its guard (no face's worst corner below 0.05 or its own) keeps every face as valid as it was.
   const std::vector<Vec3> before_fit = result.mesh.positions;
   if (options.fit_far_points)
-    result.far_points = fit_far_points(result.mesh, result.vertex_feature_kind, targets, options.edge_length);
+    result.far_points = fit_far_points(result.mesh, result.vertex_feature_kind, targets, options.edge_length,
+                                       options.sharp_angle_degrees);
   // 10. The relaxation along the field once more, now that the untangling has mended the faces whose
   //     vertices it held back, the vertices the fit moved held so that the distance they gained stays.
   std::vector<char> fit_moved(result.mesh.num_vertices(), 0);
   for (int v = 0; v < result.mesh.num_vertices(); ++v) fit_moved[v] = result.mesh.positions[v] != before_fit[v];
   refine_along_field(result.mesh, result.vertex_feature_kind, targets, directions, options.field_relax_iterations,
                      fit_moved);
+  // 11. Each quad split along its diagonal nearer the input (quad_diagonals.hpp), on the final positions.
+  result.rotated_diagonals =
+      choose_quad_diagonals(result.mesh, targets.surface, kDiagonalMargin * options.edge_length);
   if (result.untangle.flipped_after)
     result.messages.push_back(std::to_string(result.untangle.flipped_after) +
                               " face(s) are still flipped (a corner turned against the surface): the target is too "

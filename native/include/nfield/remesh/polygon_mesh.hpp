@@ -79,7 +79,8 @@ PolygonMesh subdivide_to_quads(const PolygonMesh& mesh, std::vector<int>* kind_o
                                std::vector<std::array<int, 2>>* edge_of_new_vertex = nullptr);
 
 /// Fan triangulation of every face from its first vertex (triangles keep the face's orientation).
-std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh);
+/// `triangle_face` (optional) receives the face of each triangle.
+std::vector<std::array<int, 3>> fan_triangulate(const PolygonMesh& mesh, std::vector<int>* triangle_face = nullptr);
 
 /// Key of the undirected edge {a, b} (the same for both directions).
 inline long long undirected_edge_key(int a, int b) {

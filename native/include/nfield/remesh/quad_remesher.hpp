@@ -26,6 +26,7 @@
 #include "nfield/remesh/pure_quads.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/far_point_fit.hpp"
+#include "nfield/remesh/quad_diagonals.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
 
@@ -70,6 +71,7 @@ struct QuadRemeshResult {
   UntangleReport untangle;                ///< flipped faces before / after the last step
   PureQuadReport pure_quads;              ///< the conversion to pure quads at full resolution
   FarPointFitReport far_points;           ///< vertices moved onto input points the output missed
+  int rotated_diagonals = 0;              ///< quads whose first vertex moved to split them nearer the input
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
