@@ -263,8 +263,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
                 seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
                 strict: bool = False, cancel_position_singularities: bool = True, fit_far_points: bool = True,
-                split_thin_clusters: bool = True, progress: Callable[[float], Any] | None = None,
-                stats: bool = True) -> QuadMesh:
+                split_thin_clusters: bool = True, adaptive_spacing: bool = False, max_spacing_ratio: float = 1.6,
+                progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
     field : FieldResult, DesignSession, or per-face array (see :func:`field_directions`); n = 4 is used as
@@ -299,6 +299,11 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     split_thin_clusters : split an output vertex whose surface points wrap round a part thinner than a
         lattice cell (a finger, a claw) into one vertex per side, so that its edges do not cut through the part;
         ``stats["extraction"]["split_clusters"]`` counts them.
+    adaptive_spacing : let the lattice spacing follow the field's turning (the conformal scale of the field,
+        the mean face size kept), so a field that turns without a singularity is followed by rows that do not
+        end; ``stats["adaptive_spacing"]`` gives the range of spacing / edge length.
+    max_spacing_ratio : with ``adaptive_spacing``, the spacing stays within [edge / ratio, edge * ratio]
+        (1..4).
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
         releases the GIL, so it can run in a worker thread.
     stats : False skips the quality statistics (only the remesher's own report is returned).
@@ -341,6 +346,14 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"fit_far_points must be True or False, got {fit_far_points!r}")
     if not isinstance(split_thin_clusters, (bool, np.bool_)):
         raise ValueError(f"split_thin_clusters must be True or False, got {split_thin_clusters!r}")
+    if not isinstance(adaptive_spacing, (bool, np.bool_)):
+        raise ValueError(f"adaptive_spacing must be True or False, got {adaptive_spacing!r}")
+    try:
+        max_spacing_ratio = float(max_spacing_ratio)
+    except (TypeError, ValueError):
+        raise ValueError(f"max_spacing_ratio must be a number in 1..4, got {max_spacing_ratio!r}") from None
+    if not 1.0 <= max_spacing_ratio <= 4.0:
+        raise ValueError(f"max_spacing_ratio must be a number in 1..4, got {max_spacing_ratio!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
@@ -353,7 +366,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                              refuse_small_components=bool(strict),
                              cancel_position_singularities=bool(cancel_position_singularities),
                              fit_far_points=bool(fit_far_points),
-                             split_thin_clusters=bool(split_thin_clusters), progress=progress)
+                             split_thin_clusters=bool(split_thin_clusters),
+                             adaptive_spacing=bool(adaptive_spacing), max_spacing_ratio=max_spacing_ratio,
+                             progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
     faces = _arrays_to_polygons(np.asarray(r["face_offsets"]), np.asarray(r["face_indices"]))
     seconds = time.perf_counter() - t0
@@ -379,6 +394,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "pure_quad_conversion": dict(r["pure_quads"]),
         "position_singularities": dict(r["position_singularities"]),
         "far_points": dict(r["far_points"]),
+        "adaptive_spacing": dict(r["adaptive_spacing"]) if adaptive_spacing else None,
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),

@@ -9,6 +9,7 @@
 #include "nfield/errors.hpp"
 #include "nfield/remesh/field_relaxation.hpp"
 #include "nfield/remesh/lattice_offsets.hpp"
+#include "nfield/remesh/lattice_spacing.hpp"
 #include "nfield/remesh/multires_hierarchy.hpp"
 #include "nfield/remesh/position_singularities.hpp"
 #include "nfield/remesh/irregularity_moves.hpp"
@@ -161,7 +162,8 @@ int lower_irregularity_and_project(PolygonMesh& mesh, std::vector<char>& kind, c
 int pin_cones_to_lattice_points(const RemeshSurface& surface, HierarchyLevel& L) {
   HierarchyLevel probe = L;
   probe.p = L.v;
-  const LatticeOffsets turns = compute_lattice_offsets(surface, probe, 1.0);
+  probe.spacing.assign(L.size(), 1.0);  // the turns do not depend on it
+  const LatticeOffsets turns = compute_lattice_offsets(surface, probe);
   const FaceDefects defects = face_defects(surface, triangle_edges(surface), turns);
   int pinned = 0;
   for (size_t t = 0; t < surface.triangles.size(); ++t) {
@@ -199,6 +201,8 @@ void check_options(const QuadRemeshOptions& o) {
   if (o.max_face_size < 4 || o.max_face_size > 64) throw ParameterError("quad remesh: max_face_size must be in 4..64");
   if (!(o.feature_field_angle_degrees >= 0 && o.feature_field_angle_degrees <= 45))
     throw ParameterError("quad remesh: feature_field_angle must be in 0..45 degrees");
+  if (!(o.max_spacing_ratio >= 1 && o.max_spacing_ratio <= 4))
+    throw ParameterError("quad remesh: max_spacing_ratio must be in 1..4 (got " + format(o.max_spacing_ratio) + ")");
   if (o.pure_quad_cones < -1 || o.pure_quad_cones > 1)
     throw ParameterError("quad remesh: pure_quad_cones must be -1 (both tried), 0 (free) or 1 (pinned)");
 }
@@ -272,16 +276,38 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
                          format(lattice_points) + " faces; at most " + format(kMaxLatticePoints) +
                          " are supported (raise the edge length or lower the face count)");
   refine_long_edges(surface, 0.5 * s);
-  directions.resize(surface.triangles.size());
-  for (size_t t = 0; t < surface.triangles.size(); ++t) directions[t] = triangle_directions[surface.source_triangle[t]];
   if (mesh.report().nonmanifold_edges.size() || mesh.report().num_orientation_cuts)
     result.messages.push_back("non-manifold or non-orientable edges were cut: they become boundaries of the output");
 
-  // 2. Features. Chains shorter than two lattice steps (tiny holes, noise) are not kept.
-  Features features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
-  const int num_sharp = features.num_sharp_edges;
-  const int off_field = keep_features_along_field(surface, features, directions,
-                                                  options.feature_field_angle_degrees, 2 * s);
+  // 2. Features (chains shorter than two lattice steps, tiny holes or noise, are not kept) and 3. the vertex
+  //    cross field, once more if the lattice spacing refines the surface.
+  Features features;
+  int num_sharp = 0, off_field = 0;
+  std::vector<Vec3> vertex_cross;
+  auto features_and_cross_field = [&]() {
+    directions.resize(surface.triangles.size());
+    for (size_t t = 0; t < surface.triangles.size(); ++t) directions[t] = triangle_directions[surface.source_triangle[t]];
+    features = detect_features(surface, options.keep_boundary, options.sharp_angle_degrees, 2 * s);
+    num_sharp = features.num_sharp_edges;
+    off_field = keep_features_along_field(surface, features, directions, options.feature_field_angle_degrees, 2 * s);
+    vertex_cross = vertex_cross_field(surface, directions, &features, &result.num_vertices_without_field);
+  };
+  features_and_cross_field();
+  std::vector<double> spacing(surface.num_vertices(), s);
+  if (options.adaptive_spacing) {
+    // The spacing follows the field's turning (lattice_spacing.hpp); where it is below s the surface is refined
+    // further to edges below half the local spacing, the spacing interpolated at the new midpoints.
+    LatticeSpacingOptions so;
+    so.max_ratio = options.max_spacing_ratio;
+    const std::vector<double> u = conformal_log_scale(surface, vertex_cross, s, so, &result.spacing);
+    std::vector<double> limit(u.size());
+    for (size_t v = 0; v < u.size(); ++v) limit[v] = 0.5 * s * std::exp(u[v]);
+    const int before_refinement = surface.num_vertices();
+    refine_long_edges(surface, limit);
+    spacing.resize(limit.size());
+    for (size_t v = 0; v < limit.size(); ++v) spacing[v] = 2 * limit[v];
+    if (surface.num_vertices() != before_refinement) features_and_cross_field();
+  }
   if (off_field)
     result.messages.push_back(std::to_string(num_sharp - features.num_sharp_edges) + " of " + std::to_string(num_sharp) +
                               " sharp edges were not kept: the field crosses them at more than " +
@@ -292,10 +318,10 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.messages.push_back(std::to_string(features.num_dropped_chains) +
                               " feature chain(s) shorter than two lattice steps (small holes or creases) were not kept");
 
-  // 3. Vertex cross field.
   std::vector<HierarchyLevel> levels(1);
   HierarchyLevel& L = levels[0];
-  L.q = vertex_cross_field(surface, directions, &features, &result.num_vertices_without_field);
+  L.q = std::move(vertex_cross);
+  L.spacing = std::move(spacing);
   if (result.num_vertices_without_field)
     result.messages.push_back(std::to_string(result.num_vertices_without_field) +
                               " vertices have no field direction around them (zero field): their edges follow the mesh");
@@ -331,7 +357,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
 
   // 5. Integer offsets; position singularities cancelled by a minimum-cost flow, positions re-solved.
   t0 = std::chrono::steady_clock::now();
-  LatticeOffsets offsets = compute_lattice_offsets(surface, levels[0], s);
+  LatticeOffsets offsets = compute_lattice_offsets(surface, levels[0]);
   const LatticeOffsets before = offsets;
   const std::vector<Vec3> optimised_p = levels[0].p;
   bool flow_applied = false;
@@ -341,15 +367,15 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     // A pinned cone that absorbs a unit moves the lattice against its pin: dearer than a free cone.
     if (pin_cones) cancel_options.cone_cost = kPinnedConeCost;
     const CancellationReport c = cancel_position_singularities(surface, levels[0], face_edges, features.edge_is_feature,
-                                                               s, offsets, cancel_options, [&]() { return progress && !progress(0.86); });
+                                                               offsets, cancel_options, [&]() { return progress && !progress(0.86); });
     report(0.86);
     result.cancellation = c;
     result.seconds_flow = seconds_since(t0);
     t0 = std::chrono::steady_clock::now();
     if (c.changed_offsets > 0) {
       const std::vector<Vec3>& old_p = optimised_p;
-      if (resolve_positions(surface, levels[0], offsets, s)) {
-        result.moved_representatives = normalize_representatives(surface, levels[0], offsets, s);
+      if (resolve_positions(surface, levels[0], offsets)) {
+        result.moved_representatives = normalize_representatives(surface, levels[0], offsets);
         flow_applied = true;
       } else {
         // The re-solve is a least-squares problem on the changed offsets; when it fails (singular system)
@@ -367,7 +393,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
   // 6. Extraction.
   t0 = std::chrono::steady_clock::now();
   const ProjectionTargets targets = make_projection_targets(surface, features);
-  result.mesh = extract_quad_mesh(surface, features, levels[0], offsets, s, targets, options.max_face_size,
+  result.mesh = extract_quad_mesh(surface, features, levels[0], offsets, targets, options.max_face_size,
                                   result.extraction, &result.vertex_feature_kind, options.split_thin_clusters);
   const long long surface_chi = euler_characteristic(surface);
   if (flow_applied && euler_characteristic(result.mesh) != surface_chi) {
@@ -378,7 +404,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     std::vector<char> plain_kind;
     HierarchyLevel plain = levels[0];
     plain.p = optimised_p;
-    PolygonMesh plain_mesh = extract_quad_mesh(surface, features, plain, before, s, targets, options.max_face_size,
+    PolygonMesh plain_mesh = extract_quad_mesh(surface, features, plain, before, targets, options.max_face_size,
                                                plain_report, &plain_kind, options.split_thin_clusters);
     if (std::llabs(euler_characteristic(plain_mesh) - surface_chi) <
         std::llabs(euler_characteristic(result.mesh) - surface_chi)) {
