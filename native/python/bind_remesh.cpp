@@ -126,7 +126,7 @@ void bind_remesh(py::module_& m) {
     d["num_vertices_without_field"] = r.num_vertices_without_field;
     d["lattice_spacing"] = r.lattice_spacing;
     d["adaptive_spacing"] = named("min_ratio", r.spacing.min_ratio, "max_ratio", r.spacing.max_ratio, "clamped_area",
-                                  r.spacing.clamped_area, "singular_triangles", r.spacing.singular_triangles,
+                                  r.spacing.clamped_area, "singular_triangles", r.spacing.singular_triangles, "added_vertices", r.spacing.added_vertices,
                                   "seconds", r.spacing.seconds);
     d["extraction"] = extraction_dict(r.extraction);
     const CleanupReport& k = r.cleanup;

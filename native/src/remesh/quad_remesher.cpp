@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -207,22 +208,31 @@ void check_options(const QuadRemeshOptions& o) {
     throw ParameterError("quad remesh: pure_quad_cones must be -1 (both tried), 0 (free) or 1 (pinned)");
 }
 
-/// The pipeline once; `pin_cones`: pin_cones_to_lattice_points before the position field.
-QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& triangle_directions,
-                             const QuadRemeshOptions& options, bool pin_cones, const Progress& progress,
-                             double* distance_to_input = nullptr) {
+/// What steps 1-3 make (and the two pure-quad runs share): the surface, its features, the vertex cross field,
+/// the lattice spacing per vertex and the projection targets, with the report fields these steps fill.
+struct PreparedSurface {
+  QuadRemeshResult head;                 ///< messages, components, feature counts, spacing report, setup seconds
+  double s = 0;                          ///< the target lattice spacing
+  RemeshSurface surface;
+  Features features;
+  std::vector<Vec3> vertex_cross;        ///< per surface vertex
+  std::vector<double> spacing;           ///< per surface vertex (mesh units)
+  ProjectionTargets targets;
+  std::vector<Vec3> target_directions;   ///< the field per triangle of targets.surface
+};
+
+/// Steps 1-3: the cut surface, its features, the vertex cross field and (adaptive_spacing) the spacing.
+PreparedSurface prepare_surface(const TriangleMesh& mesh, const std::vector<Vec3>& triangle_directions,
+                                const QuadRemeshOptions& options) {
   if (static_cast<int>(triangle_directions.size()) != mesh.num_faces())
     throw InputError("quad remesh: the field has " + std::to_string(triangle_directions.size()) +
                      " directions but the mesh has " + std::to_string(mesh.num_faces()) + " faces");
   for (size_t f = 0; f < triangle_directions.size(); ++f)
     if (!triangle_directions[f].allFinite())
       throw InputError("quad remesh: the field direction of face " + std::to_string(f) + " is not finite");
-  auto t0 = std::chrono::steady_clock::now();
-  auto report = [&](double fraction) {
-    if (progress && !progress(fraction)) throw Cancelled("quad remeshing cancelled");
-  };
-  report(0.0);
-  QuadRemeshResult result;
+  const auto t0 = std::chrono::steady_clock::now();
+  PreparedSurface prepared;
+  QuadRemeshResult& result = prepared.head;
   const bool subdivide = options.pure_quads && options.subdivide_for_pure_quads;
   const double s = subdivide ? 2 * options.edge_length : options.edge_length;
   result.lattice_spacing = s;
@@ -251,7 +261,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
                      format(options.edge_length) + " (" + result.messages.front() +
                      "); lower the edge length or raise the face count");
   std::vector<Vec3> directions;
-  RemeshSurface surface;
+  RemeshSurface& surface = prepared.surface;
   if (kept == full.num_components) {
     surface = std::move(full);
   } else {
@@ -281,9 +291,9 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
 
   // 2. Features (chains shorter than two lattice steps, tiny holes or noise, are not kept) and 3. the vertex
   //    cross field, once more if the lattice spacing refines the surface.
-  Features features;
+  Features& features = prepared.features;
   int num_sharp = 0, off_field = 0;
-  std::vector<Vec3> vertex_cross;
+  std::vector<Vec3>& vertex_cross = prepared.vertex_cross;
   auto features_and_cross_field = [&]() {
     directions.resize(surface.triangles.size());
     for (size_t t = 0; t < surface.triangles.size(); ++t) directions[t] = triangle_directions[surface.source_triangle[t]];
@@ -293,7 +303,14 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     vertex_cross = vertex_cross_field(surface, directions, &features, &result.num_vertices_without_field);
   };
   features_and_cross_field();
-  std::vector<double> spacing(surface.num_vertices(), s);
+  std::vector<double>& spacing = prepared.spacing;
+  spacing.assign(surface.num_vertices(), s);
+  // The projection targets' surface when the spacing refines the surface further: the unrefined one, with its
+  // features and field directions (the same geometry and feature curves on fewer points; the far-point fit
+  // visits the targets' vertices one by one).
+  std::optional<RemeshSurface> target_surface;
+  Features target_features;
+  std::vector<Vec3> target_directions;
   if (options.adaptive_spacing) {
     // The spacing follows the field's turning (lattice_spacing.hpp); where it is below s the surface is refined
     // further to edges below half the local spacing, the spacing interpolated at the new midpoints.
@@ -303,10 +320,17 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     std::vector<double> limit(u.size());
     for (size_t v = 0; v < u.size(); ++v) limit[v] = 0.5 * s * std::exp(u[v]);
     const int before_refinement = surface.num_vertices();
+    RemeshSurface unrefined = surface;
     refine_long_edges(surface, limit);
+    result.spacing.added_vertices = surface.num_vertices() - before_refinement;
     spacing.resize(limit.size());
     for (size_t v = 0; v < limit.size(); ++v) spacing[v] = 2 * limit[v];
-    if (surface.num_vertices() != before_refinement) features_and_cross_field();
+    if (surface.num_vertices() != before_refinement) {
+      target_surface = std::move(unrefined);
+      target_features = features;
+      target_directions = directions;
+      features_and_cross_field();
+    }
   }
   if (off_field)
     result.messages.push_back(std::to_string(num_sharp - features.num_sharp_edges) + " of " + std::to_string(num_sharp) +
@@ -318,13 +342,35 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.messages.push_back(std::to_string(features.num_dropped_chains) +
                               " feature chain(s) shorter than two lattice steps (small holes or creases) were not kept");
 
-  std::vector<HierarchyLevel> levels(1);
-  HierarchyLevel& L = levels[0];
-  L.q = std::move(vertex_cross);
-  L.spacing = std::move(spacing);
   if (result.num_vertices_without_field)
     result.messages.push_back(std::to_string(result.num_vertices_without_field) +
                               " vertices have no field direction around them (zero field): their edges follow the mesh");
+  prepared.s = s;
+  prepared.targets = target_surface ? make_projection_targets(*target_surface, target_features)
+                                    : make_projection_targets(surface, features);
+  prepared.target_directions = target_surface ? std::move(target_directions) : directions;
+  result.seconds_setup = seconds_since(t0);
+  return prepared;
+}
+
+/// Steps 4 on, once; `pin_cones`: pin_cones_to_lattice_points before the position field.
+QuadRemeshResult remesh_once(const PreparedSurface& prepared, const QuadRemeshOptions& options, bool pin_cones,
+                             const Progress& progress, double* distance_to_input = nullptr) {
+  auto t0 = std::chrono::steady_clock::now();
+  auto report = [&](double fraction) {
+    if (progress && !progress(fraction)) throw Cancelled("quad remeshing cancelled");
+  };
+  report(0.0);
+  QuadRemeshResult result = prepared.head;
+  const bool subdivide = options.pure_quads && options.subdivide_for_pure_quads;
+  const double s = prepared.s;
+  const RemeshSurface& surface = prepared.surface;
+  const Features& features = prepared.features;
+  const ProjectionTargets& targets = prepared.targets;
+  std::vector<HierarchyLevel> levels(1);
+  HierarchyLevel& L = levels[0];
+  L.q = prepared.vertex_cross;
+  L.spacing = prepared.spacing;
   const int V = surface.num_vertices();
   L.v = surface.positions;
   L.n = surface.vertex_normals;
@@ -338,7 +384,7 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
   for (int v = 0; v < V; ++v)
     if (L.n[v].squaredNorm() == 0) L.n[v] = Vec3::UnitZ();
   if (pin_cones) result.pure_quads.pinned_cones = pin_cones_to_lattice_points(surface, L);
-  result.seconds_setup = seconds_since(t0);
+  result.seconds_setup += seconds_since(t0);
   report(0.1);
 
   // 4. Hierarchy and position field.
@@ -392,7 +438,6 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
 
   // 6. Extraction.
   t0 = std::chrono::steady_clock::now();
-  const ProjectionTargets targets = make_projection_targets(surface, features);
   result.mesh = extract_quad_mesh(surface, features, levels[0], offsets, targets, options.max_face_size,
                                   result.extraction, &result.vertex_feature_kind, options.split_thin_clusters);
   const long long surface_chi = euler_characteristic(surface);
@@ -483,7 +528,8 @@ QuadRemeshResult remesh_once(const TriangleMesh& mesh, const std::vector<Vec3>& 
     result.vertex_feature_kind = std::move(fkind);
     relax_vertices(result.mesh, result.vertex_feature_kind, targets, options.relax_iterations);
   }
-  relax_along_field(result.mesh, result.vertex_feature_kind, targets, directions, options.field_relax_iterations);
+  relax_along_field(result.mesh, result.vertex_feature_kind, targets, prepared.target_directions,
+                    options.field_relax_iterations);
   // 8. Guarded last step: vertices of flipped faces moved until none is left (quad_untangle.hpp); faces that
   //    stay flipped split along a diagonal. For pure quads this runs on the quad-dominant mesh before the
   //    subdivision too (a split face still becomes quads there), and after it without splits.
@@ -525,7 +571,8 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
   check_options(options);
   const bool paired = options.pure_quads && !options.subdivide_for_pure_quads;
   if (!paired || options.pure_quad_cones >= 0)
-    return remesh_once(mesh, triangle_directions, options, paired && options.pure_quad_cones == 1, progress);
+    return remesh_once(prepare_surface(mesh, triangle_directions, options), options,
+                       paired && options.pure_quad_cones == 1, progress);
   // Pure quads by pairing, cones both ways: which leaves fewer irregular vertices depends on how the cones
   // sit in the lattice (pinned cones end as single vertices but constrain the flow), so both are made. The
   // pinned one is kept when it has no more flipped faces, fewer irregular vertices, and stays as close to the
@@ -536,8 +583,9 @@ QuadRemeshResult quad_remesh(const TriangleMesh& mesh, const std::vector<Vec3>& 
     return [&, from](double f) { return progress(from + 0.5 * f); };
   };
   double distance_free = 0, distance_pinned = 0;
-  QuadRemeshResult free_cones = remesh_once(mesh, triangle_directions, options, false, part(0.0), &distance_free);
-  QuadRemeshResult pinned = remesh_once(mesh, triangle_directions, options, true, part(0.5), &distance_pinned);
+  const PreparedSurface prepared = prepare_surface(mesh, triangle_directions, options);
+  QuadRemeshResult free_cones = remesh_once(prepared, options, false, part(0.0), &distance_free);
+  QuadRemeshResult pinned = remesh_once(prepared, options, true, part(0.5), &distance_pinned);
   auto irregular = [](const QuadRemeshResult& r) {
     const IrregularVertices iv = irregular_vertices(r.mesh);
     return static_cast<int>(iv.interior.size() + iv.boundary.size());

@@ -36,7 +36,8 @@ struct LatticeSpacingReport {
   double min_ratio = 1, max_ratio = 1;  ///< smallest and largest spacing / h
   double clamped_area = 0;              ///< fraction of the area where the clamp acted
   int singular_triangles = 0;           ///< triangles whose crosses turn by a non-zero index round them
-  double seconds = 0;
+  int added_vertices = 0;               ///< surface vertices added where the spacing is finer (quad_remesher.cpp)
+  double seconds = 0;                   ///< the solve (not the refinement)
 };
 
 /// The log-scale u per surface vertex (lattice spacing h e^u) of the cross field `vertex_cross` (one unit
