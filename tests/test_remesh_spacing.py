@@ -55,8 +55,8 @@ def test_adaptive_spacing_is_a_no_op_on_a_parallel_field():
     """A constant field on the flat square has no turning: u = 0, the spacing ratio 1 everywhere, and the
     output is the constant-spacing one: the same faces, the same vertices."""
     mesh, field = _turning_square(0.0)
-    V0, F0, _ = quad_remesh(mesh, field, target_faces=200, stats=False)
-    V1, F1, st = quad_remesh(mesh, field, target_faces=200, adaptive_spacing=True, stats=False)
+    V0, F0, _ = quad_remesh(mesh, field, target_faces=200, adaptive_spacing=False, stats=False)
+    V1, F1, st = quad_remesh(mesh, field, target_faces=200, stats=False)  # adaptive by default
     sp = st["adaptive_spacing"]
     assert math.isclose(sp["min_ratio"], 1.0, abs_tol=1e-9) and math.isclose(sp["max_ratio"], 1.0, abs_tol=1e-9)
     assert F0 == F1

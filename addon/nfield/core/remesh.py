@@ -263,7 +263,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
                 seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
                 strict: bool = False, cancel_position_singularities: bool = True, fit_far_points: bool = True,
-                split_thin_clusters: bool = True, adaptive_spacing: bool = False, max_spacing_ratio: float = 1.6,
+                split_thin_clusters: bool = True, adaptive_spacing: bool = True, max_spacing_ratio: float = 1.6,
                 progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 

@@ -195,12 +195,17 @@ std::vector<double> conformal_log_scale(const RemeshSurface& s, const std::vecto
       u[v] = std::clamp(u[v], -bound, bound);
     }
   }
+  // Rounded to steps of 2^-20 (a spacing change of 1e-6): the solve spreads a rounding-level difference of the
+  // field (the same field given as directions or as a representation vector) over every vertex, and the
+  // position field's discrete choices (nearest lattice points) then differ somewhere; rounded, the same field
+  // gives the same spacing but where u sits within about 1e-12 of a step.
+  for (double& x : u) x = std::clamp(std::ldexp(std::round(std::ldexp(x, 20)), -20), -bound, bound);
   double area = 0, clamped = 0;
   r.min_ratio = HUGE_VAL;
   r.max_ratio = 0;
   for (int v = 0; v < V; ++v) {
     area += s.vertex_areas[v];
-    if (std::abs(u[v]) >= bound - 1e-12) clamped += s.vertex_areas[v];
+    if (std::abs(u[v]) >= bound - std::ldexp(1.0, -20)) clamped += s.vertex_areas[v];  // at the bound, rounded
     r.min_ratio = std::min(r.min_ratio, std::exp(u[v]));
     r.max_ratio = std::max(r.max_ratio, std::exp(u[v]));
   }

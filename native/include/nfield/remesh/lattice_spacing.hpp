@@ -18,7 +18,8 @@
 // (u has a logarithmic pole there); triangles within `cone_radius` lattice steps of a singular triangle
 // take X = 0. The result is then shifted per component so that the area-weighted mean of e^-2u is 1 (the
 // lattice keeps about the face count of spacing h: a face's area is h^2 e^2u) and clamped to
-// [-log max_ratio, log max_ratio] (shift and clamp repeated, the clamp last).
+// [-log max_ratio, log max_ratio] (shift and clamp repeated, the clamp last), and rounded to steps of 2^-20
+// (so that rounding-level differences of the input field do not reach the lattice's discrete choices).
 #pragma once
 #include <vector>
 

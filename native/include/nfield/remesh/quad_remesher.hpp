@@ -55,8 +55,9 @@ struct QuadRemeshOptions {
   bool fit_far_points = true;        ///< vertices moved onto input points the output misses (far_point_fit.hpp)
   bool split_thin_clusters = true;   ///< clusters wrapped round a thin part split per side (quad_extraction.hpp)
   /// The lattice spacing follows the field's turning (lattice_spacing.hpp: edge_length e^u per vertex, u the
-  /// conformal scale, the mean face area kept) instead of edge_length everywhere.
-  bool adaptive_spacing = false;
+  /// conformal scale, the mean face area kept) instead of edge_length everywhere. Not with
+  /// subdivide_for_pure_quads (its lattice twice as coarse keeps one spacing).
+  bool adaptive_spacing = true;
   double max_spacing_ratio = 1.6;    ///< adaptive spacing within [edge_length / ratio, edge_length ratio], 1..4
 };
 
