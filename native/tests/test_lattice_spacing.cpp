@@ -62,6 +62,13 @@ RemeshSurface cylinder(int around, int up) {
   return make_remesh_surface(TriangleMesh(P, T));
 }
 
+/// The cross field of angle theta = k x on the flat surface s.
+std::vector<Vec3> turning_field(const RemeshSurface& s, double k) {
+  std::vector<Vec3> q(s.num_vertices());
+  for (int v = 0; v < s.num_vertices(); ++v) q[v] = Vec3(std::cos(k * s.positions[v].x()), std::sin(k * s.positions[v].x()), 0);
+  return q;
+}
+
 double weighted_exp_ratio(const RemeshSurface& s, const std::vector<double>& u) {
   double a = 0, w = 0;
   for (int v = 0; v < s.num_vertices(); ++v) {
@@ -77,8 +84,7 @@ int main() {
   run("theta = k x on a flat square gives u = -k y", [] {
     const RemeshSurface s = square();
     const double k = 0.1;  // theta turns by 1 radian across the square; |u| range 1 < log 4
-    std::vector<Vec3> q(s.num_vertices());
-    for (int v = 0; v < s.num_vertices(); ++v) q[v] = Vec3(std::cos(k * s.positions[v].x()), std::sin(k * s.positions[v].x()), 0);
+    const std::vector<Vec3> q = turning_field(s, k);
     LatticeSpacingOptions o;
     o.max_ratio = 4;
     LatticeSpacingReport r;
@@ -99,8 +105,7 @@ int main() {
   run("the clamp bounds the spacing ratio", [] {
     const RemeshSurface s = square();
     const double k = 0.1;
-    std::vector<Vec3> q(s.num_vertices());
-    for (int v = 0; v < s.num_vertices(); ++v) q[v] = Vec3(std::cos(k * s.positions[v].x()), std::sin(k * s.positions[v].x()), 0);
+    const std::vector<Vec3> q = turning_field(s, k);
     LatticeSpacingOptions o;
     o.max_ratio = 1.2;
     LatticeSpacingReport r;

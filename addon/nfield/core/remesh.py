@@ -258,6 +258,17 @@ def _positive(value: Any, name: str) -> float:
     return v
 
 
+def _number_in(value: Any, name: str, what: str, low: float, high: float) -> float:
+    """float(value) when it lies in [low, high] (NaN does not); else ValueError "<name> must be <what>"."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {what}, got {value!r}") from None
+    if not low <= v <= high:
+        raise ValueError(f"{name} must be {what}, got {value!r}")
+    return v
+
+
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, pure_quad_method: str = "pair",
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
@@ -301,7 +312,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         ``stats["extraction"]["split_clusters"]`` counts them.
     adaptive_spacing : let the lattice spacing follow the field's turning (the conformal scale of the field,
         the mean face size kept), so a field that turns without a singularity is followed by rows that do not
-        end; ``stats["adaptive_spacing"]`` gives the range of spacing / edge length.
+        end (default True; False: one spacing everywhere; pure_quad_method "subdivide" always uses one);
+        ``stats["adaptive_spacing"]`` gives the range of spacing / edge length.
     max_spacing_ratio : with ``adaptive_spacing``, the spacing stays within [edge / ratio, edge * ratio]
         (1..4).
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
@@ -329,12 +341,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     sharp_angle = float(sharp_angle)
     if not (math.isfinite(sharp_angle) and sharp_angle < 180):
         raise ValueError(f"sharp_angle must be below 180 degrees (0 or None: no sharp edges), got {sharp_angle!r}")
-    try:
-        feature_field_angle = float(feature_field_angle)
-    except (TypeError, ValueError):
-        raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}") from None
-    if not 0.0 <= feature_field_angle <= 45.0:
-        raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}")
+    feature_field_angle = _number_in(feature_field_angle, "feature_field_angle", "a number of degrees in 0..45", 0.0, 45.0)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**64:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
@@ -348,12 +355,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"split_thin_clusters must be True or False, got {split_thin_clusters!r}")
     if not isinstance(adaptive_spacing, (bool, np.bool_)):
         raise ValueError(f"adaptive_spacing must be True or False, got {adaptive_spacing!r}")
-    try:
-        max_spacing_ratio = float(max_spacing_ratio)
-    except (TypeError, ValueError):
-        raise ValueError(f"max_spacing_ratio must be a number in 1..4, got {max_spacing_ratio!r}") from None
-    if not 1.0 <= max_spacing_ratio <= 4.0:
-        raise ValueError(f"max_spacing_ratio must be a number in 1..4, got {max_spacing_ratio!r}")
+    max_spacing_ratio = _number_in(max_spacing_ratio, "max_spacing_ratio", "a number in 1..4", 1.0, 4.0)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
@@ -394,7 +396,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "pure_quad_conversion": dict(r["pure_quads"]),
         "position_singularities": dict(r["position_singularities"]),
         "far_points": dict(r["far_points"]),
-        "adaptive_spacing": dict(r["adaptive_spacing"]) if adaptive_spacing else None,
+        "adaptive_spacing": (dict(r["adaptive_spacing"])
+                             if adaptive_spacing and not (pure_quads and pure_quad_method == "subdivide") else None),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),
