@@ -79,6 +79,7 @@ struct QuadRemeshResult {
   PureQuadReport pure_quads;              ///< the conversion to pure quads at full resolution
   FarPointFitReport far_points;           ///< vertices moved onto input points the output missed
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
+  bool flow_discarded = false;            ///< the flow's offsets changed the topology: extracted without them
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
 };
