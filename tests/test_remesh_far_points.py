@@ -207,11 +207,12 @@ def test_thin_clusters_are_split_per_side_on_the_armadillo_hand():
     round a finger fall on one lattice point, and that one output vertex (valence 12) took edges through the
     finger. Split into one vertex per side, the output comes closer to the input (measured Hausdorff 0.924 ->
     0.688% of the diagonal, pure quads 1.13 -> 0.61%) at the cost of an irregular vertex
-    (155 -> 156). About 9 s."""
+    (155 -> 156). About 9 s. With one lattice spacing, the lattice measured: with the adaptive spacing (the
+    default) the farthest point is elsewhere (0.00718 mesh units with and without the split)."""
     mesh = core_mesh("armadillo.obj")
     field = benchmark_field(mesh)
-    whole = quad_remesh(mesh, field, target_faces=5000, split_thin_clusters=False).stats
-    split = quad_remesh(mesh, field, target_faces=5000).stats
+    whole = quad_remesh(mesh, field, target_faces=5000, split_thin_clusters=False, adaptive_spacing=False).stats
+    split = quad_remesh(mesh, field, target_faces=5000, adaptive_spacing=False).stats
     print({k: (whole[k], split[k]) for k in ("hausdorff_relative", "distance_to_input", "irregular_vertices")},
           split["extraction"]["split_clusters"])
     assert whole["extraction"]["split_clusters"] == 0 and split["extraction"]["split_clusters"] >= 1

@@ -89,7 +89,8 @@ QuadRemeshOptions remesh_options(const py::kwargs& kwargs) {
       {"field_relax_iterations", &O::field_relax_iterations}, {"refuse_small_components", &O::refuse_small_components},
       {"cancel_position_singularities", &O::cancel_position_singularities},
       {"pure_quad_cones", &O::pure_quad_cones},
-      {"fit_far_points", &O::fit_far_points}, {"split_thin_clusters", &O::split_thin_clusters}};
+      {"fit_far_points", &O::fit_far_points}, {"split_thin_clusters", &O::split_thin_clusters},
+      {"adaptive_spacing", &O::adaptive_spacing}, {"max_spacing_ratio", &O::max_spacing_ratio}};
   O o;
   for (const auto& [key, value] : kwargs) {
     const std::string name = py::cast<std::string>(key);
@@ -124,6 +125,9 @@ void bind_remesh(py::module_& m) {
     d["num_sharp_feature_edges"] = r.num_sharp_feature_edges;
     d["num_vertices_without_field"] = r.num_vertices_without_field;
     d["lattice_spacing"] = r.lattice_spacing;
+    d["adaptive_spacing"] = named("min_ratio", r.spacing.min_ratio, "max_ratio", r.spacing.max_ratio, "clamped_area",
+                                  r.spacing.clamped_area, "singular_triangles", r.spacing.singular_triangles, "added_vertices", r.spacing.added_vertices,
+                                  "seconds", r.spacing.seconds);
     d["extraction"] = extraction_dict(r.extraction);
     const CleanupReport& k = r.cleanup;
     d["cleanup"] = named("doublets", k.doublets, "triangle_pairs", k.triangle_pairs + k.triangle_pentagon_pairs,
@@ -160,7 +164,7 @@ void bind_remesh(py::module_& m) {
      "Quad remesh along a cross field given as one 3D direction per face; options by keyword, named as the "
      "members of QuadRemeshOptions (edge_length, pure_quads, subdivide_for_pure_quads, keep_boundary, sharp_angle, feature_field_angle, "
      "seed, iterations, max_face_size, relax_iterations, refuse_small_components, cancel_position_singularities, pure_quad_cones, fit_far_points, "
-     "split_thin_clusters; "
+     "split_thin_clusters, adaptive_spacing, max_spacing_ratio; "
      "see nfield/remesh/quad_remesher.hpp)");
 
   m.def("min_cost_flow", [](int num_nodes, const IndexArray& tails, const IndexArray& heads, const IndexArray& capacities,

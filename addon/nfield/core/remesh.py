@@ -262,14 +262,25 @@ def _positive(value: Any, name: str) -> float:
 _PURE_QUAD_CONES = {"best": -1, "pinned": 1, "free": 0}
 
 
+def _number_in(value: Any, name: str, what: str, low: float, high: float) -> float:
+    """float(value) when it lies in [low, high] (NaN does not); else ValueError "<name> must be <what>"."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {what}, got {value!r}") from None
+    if not low <= v <= high:
+        raise ValueError(f"{name} must be {what}, got {value!r}")
+    return v
+
+
 def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge_length: float | None = None,
                 n: int | None = None, pure_quads: bool = False, pure_quad_method: str = "pair",
                 pure_quad_cones: str = "best",
                 keep_boundary: bool = True, sharp_angle: float | None = 40.0, feature_field_angle: float = 35.0,
                 seed: int = 0, iterations: int = 10, relax_iterations: int = 2, field_relax_iterations: int = 6,
                 strict: bool = False, cancel_position_singularities: bool = True, fit_far_points: bool = True,
-                split_thin_clusters: bool = True, progress: Callable[[float], Any] | None = None,
-                stats: bool = True) -> QuadMesh:
+                split_thin_clusters: bool = True, adaptive_spacing: bool = True, max_spacing_ratio: float = 1.6,
+                progress: Callable[[float], Any] | None = None, stats: bool = True) -> QuadMesh:
     """Remesh ``mesh`` into a quad-dominant (or pure quad) mesh whose edges follow ``field``.
 
     field : FieldResult, DesignSession, or per-face array (see :func:`field_directions`); n = 4 is used as
@@ -313,6 +324,12 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     split_thin_clusters : split an output vertex whose surface points wrap round a part thinner than a
         lattice cell (a finger, a claw) into one vertex per side, so that its edges do not cut through the part;
         ``stats["extraction"]["split_clusters"]`` counts them.
+    adaptive_spacing : let the lattice spacing follow the field's turning (the conformal scale of the field,
+        the mean face size kept), so a field that turns without a singularity is followed by rows that do not
+        end (default True; False: one spacing everywhere; pure_quad_method "subdivide" always uses one);
+        ``stats["adaptive_spacing"]`` gives the range of spacing / edge length.
+    max_spacing_ratio : with ``adaptive_spacing``, the spacing stays within [edge / ratio, edge * ratio]
+        (1..4).
     progress : callable(fraction) returning False to cancel (raises ``nfield.core.Cancelled``); the call
         releases the GIL, so it can run in a worker thread.
     stats : False skips the quality statistics (only the remesher's own report is returned).
@@ -340,12 +357,7 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
     sharp_angle = float(sharp_angle)
     if not (math.isfinite(sharp_angle) and sharp_angle < 180):
         raise ValueError(f"sharp_angle must be below 180 degrees (0 or None: no sharp edges), got {sharp_angle!r}")
-    try:
-        feature_field_angle = float(feature_field_angle)
-    except (TypeError, ValueError):
-        raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}") from None
-    if not 0.0 <= feature_field_angle <= 45.0:
-        raise ValueError(f"feature_field_angle must be a number of degrees in 0..45, got {feature_field_angle!r}")
+    feature_field_angle = _number_in(feature_field_angle, "feature_field_angle", "a number of degrees in 0..45", 0.0, 45.0)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**64:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if isinstance(relax_iterations, bool) or not isinstance(relax_iterations, (int, np.integer)) or not 0 <= int(relax_iterations) <= 100:
@@ -357,6 +369,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         raise ValueError(f"fit_far_points must be True or False, got {fit_far_points!r}")
     if not isinstance(split_thin_clusters, (bool, np.bool_)):
         raise ValueError(f"split_thin_clusters must be True or False, got {split_thin_clusters!r}")
+    if not isinstance(adaptive_spacing, (bool, np.bool_)):
+        raise ValueError(f"adaptive_spacing must be True or False, got {adaptive_spacing!r}")
+    max_spacing_ratio = _number_in(max_spacing_ratio, "max_spacing_ratio", "a number in 1..4", 1.0, 4.0)
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or not 1 <= int(iterations) <= 1000:
         raise ValueError(f"iterations must be an integer in 1..1000, got {iterations!r}")
 
@@ -370,7 +385,9 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
                              refuse_small_components=bool(strict),
                              cancel_position_singularities=bool(cancel_position_singularities),
                              fit_far_points=bool(fit_far_points),
-                             split_thin_clusters=bool(split_thin_clusters), progress=progress)
+                             split_thin_clusters=bool(split_thin_clusters),
+                             adaptive_spacing=bool(adaptive_spacing), max_spacing_ratio=max_spacing_ratio,
+                             progress=progress)
     V = np.asarray(r["vertices"], dtype=np.float64)
     faces = _arrays_to_polygons(np.asarray(r["face_offsets"]), np.asarray(r["face_indices"]))
     seconds = time.perf_counter() - t0
@@ -397,6 +414,8 @@ def quad_remesh(mesh: Mesh, field: Any, *, target_faces: int | None = None, edge
         "position_singularities": dict(r["position_singularities"]),
         "far_points": dict(r["far_points"]),
         "rotated_diagonals": int(r["rotated_diagonals"]),
+        "adaptive_spacing": (dict(r["adaptive_spacing"])
+                             if adaptive_spacing and not (pure_quads and pure_quad_method == "subdivide") else None),
         "messages": list(r["messages"]) + [f"mesh: {line}" for line in mesh.report.get("summary", []) or []],
         "seconds": seconds,
         "seconds_native": dict(r["seconds"]),

@@ -23,7 +23,7 @@ Mat32 frame(const HierarchyLevel& L, int i) {
 
 }  // namespace
 
-LatticeOffsets compute_lattice_offsets(const RemeshSurface& s, const HierarchyLevel& L, double scale) {
+LatticeOffsets compute_lattice_offsets(const RemeshSurface& s, const HierarchyLevel& L) {
   LatticeOffsets out;
   const int E = static_cast<int>(s.edges.size());
   out.offset.resize(E);
@@ -33,6 +33,7 @@ LatticeOffsets compute_lattice_offsets(const RemeshSurface& s, const HierarchyLe
     const int i = s.edges[e][0], j = s.edges[e][1];
     int k = 0;
     const Vec3 q_j = compatible_direction(L.q[i], L.q[j], L.n[j], &k);
+    const double scale = L.pair_spacing(i, j);
     const LatticePair pair = closest_lattice_pair(L.v[i], L.n[i], L.q[i], L.p[i], L.v[j], L.n[j], q_j, L.p[j], scale);
     out.offset[e] = pair.index_i - pair.index_j;
     const Vec3 gap = pair.point_j - pair.point_i;
@@ -86,13 +87,14 @@ FaceDefects face_defects(const RemeshSurface& s, const std::vector<std::array<in
   return d;
 }
 
-int normalize_representatives(const RemeshSurface& s, HierarchyLevel& L, LatticeOffsets& o, double scale) {
+int normalize_representatives(const RemeshSurface& s, HierarchyLevel& L, LatticeOffsets& o) {
   const int V = s.num_vertices();
   std::vector<Eigen::Vector2i> shift(V);
   int changed = 0;
   for (int i = 0; i < V; ++i) {
     const Vec3 t = L.n[i].cross(L.q[i]);
     const Vec3 d = L.v[i] - L.p[i];
+    const double scale = L.spacing[i];
     shift[i] = Eigen::Vector2i(static_cast<int>(std::lround(L.q[i].dot(d) / scale)),
                                static_cast<int>(std::lround(t.dot(d) / scale)));
     if (shift[i] != Eigen::Vector2i::Zero()) {
@@ -107,8 +109,7 @@ int normalize_representatives(const RemeshSurface& s, HierarchyLevel& L, Lattice
   return changed;
 }
 
-bool resolve_positions(const RemeshSurface& s, HierarchyLevel& L, const LatticeOffsets& o, double scale,
-                       double lambda) {
+bool resolve_positions(const RemeshSurface& s, HierarchyLevel& L, const LatticeOffsets& o, double lambda) {
   const int V = s.num_vertices();
   // Unknowns: the two tangent coordinates x_i of p_i = v_i + A_i x_i; fixed ones (feature constraints) get
   // index -1 and their value in `fixed_value`.
@@ -154,7 +155,7 @@ bool resolve_positions(const RemeshSurface& s, HierarchyLevel& L, const LatticeO
     Vec3 qb = L.q[b];
     for (int r = 0; r < k; ++r) qb = L.n[b].cross(qb);
     const Vec3 qbar = 0.5 * (A.col(0) + qb), tbar = 0.5 * (A.col(1) + L.n[b].cross(qb));
-    const Vec3 g = scale * (o.offset[e].x() * qbar + o.offset[e].y() * tbar);
+    const Vec3 g = L.pair_spacing(a, b) * (o.offset[e].x() * qbar + o.offset[e].y() * tbar);
     Vec3 nbar = L.n[a] + L.n[b];
     nbar = nbar.norm() > 0 ? Vec3(nbar.normalized()) : L.n[a];
     const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - nbar * nbar.transpose();

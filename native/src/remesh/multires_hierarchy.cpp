@@ -28,7 +28,8 @@ HierarchyLevel coarsen(HierarchyLevel& fine) {
   auto add_parent = [&](std::initializer_list<int> children) {
     const int c = coarse.size();
     Vec3 v = Vec3::Zero(), n = Vec3::Zero(), q = Vec3::Zero();
-    double area = 0;
+    double area = 0, spacing = 0;
+    bool same_spacing = true;  // then the parent takes it exactly (a uniform lattice stays bit-identical)
     int first = -1;
     char kind = 0;
     Vec3 cpoint = Vec3::Zero(), cdir = Vec3::Zero();
@@ -37,6 +38,10 @@ HierarchyLevel coarsen(HierarchyLevel& fine) {
       const double w = fine.area[child] > 0 ? fine.area[child] : 1e-300;
       v += w * fine.v[child];
       n += w * fine.n[child];
+      if (!fine.spacing.empty()) {
+        spacing += w * fine.spacing[child];
+        same_spacing = same_spacing && fine.spacing[child] == fine.spacing[*children.begin()];
+      }
       area += fine.area[child];
       if (first < 0) {
         first = child;
@@ -60,6 +65,7 @@ HierarchyLevel coarsen(HierarchyLevel& fine) {
     coarse.n.push_back(n);
     coarse.q.push_back(q.normalized());
     coarse.area.push_back(area);
+    if (!fine.spacing.empty()) coarse.spacing.push_back(same_spacing ? fine.spacing[first] : spacing / total);
     coarse.constraint_kind.push_back(kind);
     coarse.constraint_point.push_back(cpoint);
     coarse.constraint_dir.push_back(cdir);

@@ -21,7 +21,7 @@ struct SplitMix64 {
   double uniform() { return (next() >> 11) * (1.0 / 9007199254740992.0); }  // [0, 1)
 };
 
-void sweep(HierarchyLevel& L, double s) {
+void sweep(HierarchyLevel& L) {
   const int V = L.size();
   for (int i = 0; i < V; ++i) {
     const Vec3& v_i = L.v[i];
@@ -33,13 +33,13 @@ void sweep(HierarchyLevel& L, double s) {
       const int j = L.adjacency[k];
       const double w = L.adjacency_weight[k];
       const Vec3 q_j = compatible_direction(q_i, L.q[j], L.n[j]);
-      const LatticePair pair = closest_lattice_pair(v_i, n_i, q_i, p_i, L.v[j], L.n[j], q_j, L.p[j], s);
+      const LatticePair pair = closest_lattice_pair(v_i, n_i, q_i, p_i, L.v[j], L.n[j], q_j, L.p[j], L.pair_spacing(i, j));
       p_i = (pair.point_i * weight_sum + pair.point_j * w) / (weight_sum + w);
       weight_sum += w;
       p_i -= n_i * n_i.dot(p_i - v_i);
     }
     p_i = apply_position_constraint(L, i, p_i);
-    L.p[i] = nearest_lattice_point(p_i, q_i, n_i, v_i, s);
+    L.p[i] = nearest_lattice_point(p_i, q_i, n_i, v_i, L.spacing[i]);
   }
 }
 
@@ -62,6 +62,11 @@ void optimise_positions(std::vector<HierarchyLevel>& levels, const PositionField
                         const Progress& progress) {
   const double s = options.scale;
   if (!(s > 0) || !std::isfinite(s)) throw ParameterError("position field: the lattice spacing must be positive");
+  for (auto& L : levels) {
+    if (L.spacing.empty()) L.spacing.assign(L.size(), s);
+    for (double h : L.spacing)
+      if (!(h > 0) || !std::isfinite(h)) throw ParameterError("position field: the lattice spacing must be positive");
+  }
   SplitMix64 rng{options.seed * 0x2545F4914F6CDD1DULL + 0x1234567ULL};
   // Work is proportional to the number of vertices per level.
   double total = 0;
@@ -75,7 +80,8 @@ void optimise_positions(std::vector<HierarchyLevel>& levels, const PositionField
   for (int i = 0; i < top.size(); ++i) {
     const Vec3 t = top.n[i].cross(top.q[i]);
     const double a = rng.uniform() - 0.5, b = rng.uniform() - 0.5;
-    top.p[i] = nearest_lattice_point(top.v[i] + s * (a * top.q[i] + b * t), top.q[i], top.n[i], top.v[i], s);
+    const double h = top.spacing[i];
+    top.p[i] = nearest_lattice_point(top.v[i] + h * (a * top.q[i] + b * t), top.q[i], top.n[i], top.v[i], h);
   }
   for (int l = static_cast<int>(levels.size()) - 1; l >= 0; --l) {
     HierarchyLevel& L = levels[l];
@@ -85,11 +91,11 @@ void optimise_positions(std::vector<HierarchyLevel>& levels, const PositionField
       for (int i = 0; i < L.size(); ++i) {
         const Vec3& pc = C.p[L.parent[i]];
         const Vec3 p = pc - L.n[i] * L.n[i].dot(pc - L.v[i]);
-        L.p[i] = nearest_lattice_point(p, L.q[i], L.n[i], L.v[i], s);
+        L.p[i] = nearest_lattice_point(p, L.q[i], L.n[i], L.v[i], L.spacing[i]);
       }
     }
     for (int it = 0; it < options.iterations; ++it) {
-      sweep(L, s);
+      sweep(L);
       done += L.size();
       report();
     }

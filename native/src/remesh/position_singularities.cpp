@@ -37,10 +37,10 @@ std::vector<unsigned char> feature_fixed_components(const RemeshSurface& s, cons
 }
 
 /// The flow of the header comment on any triangulated surface (the fine one or the collapsed lattice mesh),
-/// `positions` in mesh units, `fixed` per edge. Changes `o` along the paths found; fills the flow figures of
+/// `positions` in mesh units, `spacing` (mesh units) per vertex, `fixed` per edge. Changes `o` along the paths found; fills the flow figures of
 /// `report`.
 void route_residuals(const RemeshSurface& s, const std::vector<std::array<int, 3>>& fe,
-                     const std::vector<unsigned char>& fixed, double scale, LatticeOffsets& o,
+                     const std::vector<unsigned char>& fixed, const std::vector<double>& spacing, LatticeOffsets& o,
                      const CancellationOptions& options, const std::function<bool()>& cancelled,
                      CancellationReport& report) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -121,6 +121,7 @@ void route_residuals(const RemeshSurface& s, const std::vector<std::array<int, 3
   std::vector<double> dual_length(E, 0.0);
   for (int e = 0; e < E; ++e) {
     const Vec3 mid = 0.5 * (s.positions[s.edges[e][0]] + s.positions[s.edges[e][1]]);
+    const double scale = 0.5 * (spacing[s.edges[e][0]] + spacing[s.edges[e][1]]);
     for (int t : s.edge_faces[e]) {
       if (t < 0) continue;
       const auto& tri = s.triangles[t];
@@ -198,8 +199,7 @@ void route_residuals(const RemeshSurface& s, const std::vector<std::array<int, 3
 
 CancellationReport cancel_position_singularities(const RemeshSurface& s, const HierarchyLevel& L,
                                                  const std::vector<std::array<int, 3>>& fe,
-                                                 const std::vector<char>& feature_edge, double scale,
-                                                 LatticeOffsets& o, const CancellationOptions& options,
+                                                 const std::vector<char>& feature_edge, LatticeOffsets& o, const CancellationOptions& options,
                                                  const std::function<bool()>& cancelled) {
   CancellationReport report;
   const FaceDefects before = face_defects(s, fe, o);
@@ -218,7 +218,21 @@ CancellationReport cancel_position_singularities(const RemeshSurface& s, const H
     if (expand_offsets(s, coarse, check) == 0) {
       report.network_triangles = static_cast<int>(coarse.surface.triangles.size());
       report.seconds_collapse = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      route_residuals(coarse.surface, triangle_edges(coarse.surface), coarse.fixed, scale, coarse.offsets, options,
+      // A coarse vertex's spacing: the mean of its fine vertices' (exactly theirs when they agree).
+      const int CV = coarse.surface.num_vertices();
+      std::vector<double> spacing(CV, 0.0), count(CV, 0.0), first(CV, -1.0);
+      std::vector<char> same(CV, 1);
+      for (int v = 0; v < s.num_vertices(); ++v) {
+        const int c = coarse.vertex_of[v];
+        if (c < 0) continue;
+        if (first[c] < 0) first[c] = L.spacing[v];
+        same[c] = same[c] && L.spacing[v] == first[c];
+        spacing[c] += L.spacing[v];
+        count[c] += 1;
+      }
+      for (int c = 0; c < CV; ++c)
+        spacing[c] = count[c] == 0 ? L.spacing[0] : same[c] ? first[c] : spacing[c] / count[c];
+      route_residuals(coarse.surface, triangle_edges(coarse.surface), coarse.fixed, spacing, coarse.offsets, options,
                       cancelled, report);
       report.changed_offsets = expand_offsets(s, coarse, o);
       report.position_singularities_after = face_defects(s, fe, o).position_singularities;
@@ -226,7 +240,7 @@ CancellationReport cancel_position_singularities(const RemeshSurface& s, const H
     }
   }
   report.network_triangles = static_cast<int>(s.triangles.size());
-  route_residuals(s, fe, fixed, scale, o, options, cancelled, report);
+  route_residuals(s, fe, fixed, L.spacing, o, options, cancelled, report);
   report.position_singularities_after = face_defects(s, fe, o).position_singularities;
   return report;
 }

@@ -39,16 +39,16 @@ void split_walk(const std::vector<int>& walk, std::vector<std::vector<int>>& loo
 /// edges to the neighbours on the other sheets cut through the part (armadillo at 5,000 faces: a valence-12
 /// vertex on a finger, edges 0.9% of the diagonal off the surface). A cluster is split when one of its
 /// members' normals points against the cluster's mean normal (cosine below kStraddle), its lattice point
-/// lies kOffSurface scale or more off the surface (the members wrap round the part, so their common point
+/// lies kOffSurface lattice steps or more off the surface (the members wrap round the part, so their common point
 /// sits inside it; on a plate's rim the split only added irregular vertices) and it has no feature member:
 /// two seeds, that member and the member whose normal is most against it, and every member goes to
 /// the seed nearer in hops along the cluster's zero-offset edges; when both halves are connected they become
 /// two clusters (the edges between them act as a link), each placed at the mean surface position of its
 /// members (their lattice points coincide), so each is projected onto its own sheet. Returns the number of
 /// clusters split; `parent` (union-find) and `own_place` (members placed by their positions) are updated.
-int split_straddling_clusters(const RemeshSurface& s, const Features& features, const HierarchyLevel& L,
+int split_straddling_clusters(const Features& features, const HierarchyLevel& L,
                               const std::vector<std::array<int, 2>>& zero_edges, const std::vector<int>& cluster_of,
-                              const std::vector<Vec3>& pos, const std::vector<Vec3>& nrm, int C, double scale,
+                              const std::vector<Vec3>& pos, const std::vector<Vec3>& nrm, int C,
                               const TriangleTree& surface, std::vector<int>& parent,
                               std::vector<char>& own_place) {
   constexpr double kStraddle = -0.3;
@@ -65,9 +65,11 @@ int split_straddling_clusters(const RemeshSurface& s, const Features& features, 
   }
   for (int v = 0; v < V; ++v)
     if (features.vertex_kind[v] != kNoFeature) opposite[cluster_of[v]] = -1;
-  for (int c = 0; c < C; ++c)
-    if (opposite[c] >= 0 && surface.closest(pos[c]).squared_distance < kOffSurface * kOffSurface * scale * scale)
-      opposite[c] = -1;
+  for (int c = 0; c < C; ++c) {
+    if (opposite[c] < 0) continue;
+    const double off = kOffSurface * L.spacing[opposite[c]];
+    if (surface.closest(pos[c]).squared_distance < off * off) opposite[c] = -1;
+  }
   std::vector<std::vector<int>> members(C);
   for (int v = 0; v < V; ++v)
     if (opposite[cluster_of[v]] >= 0) members[cluster_of[v]].push_back(v);
@@ -136,7 +138,7 @@ ProjectionTargets make_projection_targets(const RemeshSurface& s, const Features
 }
 
 PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, const HierarchyLevel& L,
-                              const LatticeOffsets& offsets, double scale, const ProjectionTargets& targets, int max_face_size,
+                              const LatticeOffsets& offsets, const ProjectionTargets& targets, int max_face_size,
                               ExtractionReport& report, std::vector<char>* feature_kind_out,
                               bool split_thin_clusters) {
   const int V = s.num_vertices();
@@ -195,7 +197,8 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
     int merged = 0;
     for (const auto& e : unit_edges) {
       const int a = cluster_of[e[0]], b = cluster_of[e[1]];
-      if (a != b && (pos[a] - pos[b]).norm() < 0.25 * scale && find(parent, e[0]) != find(parent, e[1])) {
+      if (a != b && (pos[a] - pos[b]).norm() < 0.25 * L.pair_spacing(e[0], e[1]) &&
+          find(parent, e[0]) != find(parent, e[1])) {
         parent[find(parent, e[0])] = find(parent, e[1]);
         ++merged;
       }
@@ -205,7 +208,7 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   }
   cluster_positions(pos, nrm, cluster_of, C);
   if (split_thin_clusters)
-    report.split_clusters = split_straddling_clusters(s, features, L, zero_edges, cluster_of, pos, nrm, C, scale,
+    report.split_clusters = split_straddling_clusters(features, L, zero_edges, cluster_of, pos, nrm, C,
                                                       targets.surface, parent, own_place);
   if (report.split_clusters > 0) cluster_positions(pos, nrm, cluster_of, C);
   report.clusters = C;
@@ -344,17 +347,20 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
   // feature with one member, its lattice point a row away, is not pulled onto it.
   std::vector<char> cluster_kind(C, kNoFeature);
   for (int v = 0; v < V; ++v) cluster_kind[cluster_of[v]] = std::max(cluster_kind[cluster_of[v]], features.vertex_kind[v]);
-  const double on_feature = 0.45 * scale;
+  // A cluster's lattice spacing: that of one of its members (they lie within a lattice cell).
+  std::vector<double> cluster_spacing(C, 0.0);
+  for (int v = V - 1; v >= 0; --v) cluster_spacing[cluster_of[v]] = L.spacing[v];
+  auto on_feature = [&](int c) { return 0.45 * cluster_spacing[c]; };
   for (int c = 0; c < C; ++c)
     if (cluster_kind[c] != kNoFeature && !targets.feature_edges.empty() &&
-        targets.feature_edges.closest(pos[c]).squared_distance > on_feature * on_feature)
+        targets.feature_edges.closest(pos[c]).squared_distance > on_feature(c) * on_feature(c))
       cluster_kind[c] = kNoFeature;
   // Corners: snap to the member corner vertex nearest to the cluster position (when that is near).
   std::vector<int> corner_of(C, -1);
   for (int v = 0; v < V; ++v) {
     if (features.vertex_kind[v] != kCorner) continue;
     const int c = cluster_of[v];
-    if ((s.positions[v] - pos[c]).norm() > on_feature) continue;
+    if ((s.positions[v] - pos[c]).norm() > on_feature(c)) continue;
     if (corner_of[c] < 0 || (s.positions[v] - pos[c]).norm() < (s.positions[corner_of[c]] - pos[c]).norm()) corner_of[c] = v;
   }
   // One output vertex per corner point: when two clusters claim corners closer than a quarter of the
@@ -368,7 +374,7 @@ PolygonMesh extract_quad_mesh(const RemeshSurface& s, const Features& features, 
       bool keep = true;
       for (int& other : claimed) {
         const Vec3& y = s.positions[corner_of[other]];
-        if ((x - y).norm() >= 0.25 * scale) continue;
+        if ((x - y).norm() >= 0.25 * cluster_spacing[c]) continue;
         if ((pos[c] - x).norm() < (pos[other] - y).norm()) {
           corner_of[other] = -1;
           other = c;

@@ -63,8 +63,11 @@ RemeshSurface make_remesh_surface(const TriangleMesh& mesh) {
   return s;
 }
 
-void refine_long_edges(RemeshSurface& s, double max_length) {
-  if (!(max_length > 0)) return;
+namespace {
+
+/// refine_long_edges with a limit per vertex when `limit` is given (edge ab long above the mean of its ends'
+/// limits; a midpoint takes that mean), else `max_length` everywhere.
+void refine_edges(RemeshSurface& s, double max_length, std::vector<double>* limit) {
   const double max2 = max_length * max_length;
   for (int pass = 0; pass < 32; ++pass) {
     std::unordered_map<long long, int> midpoint;
@@ -75,10 +78,16 @@ void refine_long_edges(RemeshSurface& s, double max_length) {
       if (inserted) {
         s.positions.push_back(0.5 * (s.positions[a] + s.positions[b]));
         s.source_vertex.push_back(-1);
+        if (limit) limit->push_back(0.5 * ((*limit)[a] + (*limit)[b]));
       }
       return it->second;
     };
-    auto is_long = [&](int a, int b) { return (s.positions[a] - s.positions[b]).squaredNorm() > max2; };
+    auto is_long = [&](int a, int b) {
+      const double d2 = (s.positions[a] - s.positions[b]).squaredNorm();
+      if (!limit) return d2 > max2;
+      const double m = 0.5 * ((*limit)[a] + (*limit)[b]);
+      return d2 > m * m;
+    };
     std::vector<std::array<int, 3>> triangles;
     std::vector<int> source;
     bool changed = false;
@@ -127,6 +136,20 @@ void refine_long_edges(RemeshSurface& s, double max_length) {
     if (!changed) break;
   }
   finalize_surface(s);
+}
+
+}  // namespace
+
+void refine_long_edges(RemeshSurface& s, double max_length) {
+  if (max_length > 0) refine_edges(s, max_length, nullptr);
+}
+
+void refine_long_edges(RemeshSurface& s, std::vector<double>& max_length) {
+  if (static_cast<int>(max_length.size()) != s.num_vertices())
+    throw ParameterError("refine_long_edges: one limit per vertex is needed");
+  for (double m : max_length)
+    if (!(m > 0)) throw ParameterError("refine_long_edges: the limits must be positive");
+  refine_edges(s, 0, &max_length);
 }
 
 void finalize_surface(RemeshSurface& s) {

@@ -49,8 +49,9 @@ struct LatticeOffsets {
   int directed_turns(int e, bool forward) const { return forward ? turns[e] : (4 - turns[e]) % 4; }
 };
 
-/// The offsets of level0's position field (p, q, n, v of every surface vertex) on every surface edge.
-LatticeOffsets compute_lattice_offsets(const RemeshSurface& surface, const HierarchyLevel& level0, double scale);
+/// The offsets of level0's position field (p, q, n, v and spacing of every surface vertex) on every surface
+/// edge; an edge's lattice points are matched at the mean spacing of its ends.
+LatticeOffsets compute_lattice_offsets(const RemeshSurface& surface, const HierarchyLevel& level0);
 
 /// The three edges of every triangle: face_edges[t][m] joins corners m and m + 1.
 std::vector<std::array<int, 3>> triangle_edges(const RemeshSurface& surface);
@@ -68,19 +69,19 @@ FaceDefects face_defects(const RemeshSurface& surface, const std::vector<std::ar
 
 /// Moves every vertex's lattice point to the one nearest the vertex (a change of representative, not of
 /// the lattice) and updates the offsets to match: D_ab <- D_ab - c_a + R^-k_ab c_b for the integer shifts
-/// c. Face residuals do not change. Returns the number of vertices whose representative changed.
-int normalize_representatives(const RemeshSurface& surface, HierarchyLevel& level0, LatticeOffsets& offsets,
-                              double scale);
+/// c (in steps of the vertex's own spacing). Face residuals do not change. Returns the number of vertices
+/// whose representative changed.
+int normalize_representatives(const RemeshSurface& surface, HierarchyLevel& level0, LatticeOffsets& offsets);
 
 /// Re-solves the lattice positions with the offsets held fixed: minimises, over p_i in the tangent plane of
 /// v_i,
-///     sum over edges ab of |P_ab (p_b - p_a - s (D.x qbar + D.y tbar))|^2 + lambda sum_i |p_i - p_i_old|^2,
-/// qbar, tbar the mean of a's frame and b's matched frame, P_ab the projection onto the plane orthogonal to
+///     sum over edges ab of |P_ab (p_b - p_a - s_ab (D.x qbar + D.y tbar))|^2 + lambda sum_i |p_i - p_i_old|^2,
+/// s_ab the mean spacing of a and b, qbar, tbar the mean of a's frame and b's matched frame, P_ab the projection onto the plane orthogonal to
 /// the mean normal; lambda (dimensionless, per vertex, against unit edge weights) only pins the free
 /// translation. Feature constraints are exact: a corner's lattice point stays on the corner, a curve
 /// vertex keeps its lattice line through the curve point. One sparse Cholesky factorization (CHOLMOD).
 /// Returns false (positions unchanged) if the factorization fails.
 bool resolve_positions(const RemeshSurface& surface, HierarchyLevel& level0, const LatticeOffsets& offsets,
-                       double scale, double lambda = 1e-3);
+                       double lambda = 1e-3);
 
 }  // namespace nfield::remesh

@@ -26,7 +26,7 @@ namespace nfield::remesh {
 using Progress = std::function<bool(double)>;
 
 struct PositionFieldOptions {
-  double scale = 1.0;           ///< lattice spacing s (mesh units)
+  double scale = 1.0;           ///< lattice spacing s (mesh units) of the levels without their own `spacing`
   int iterations = 10;          ///< Gauss-Seidel sweeps per level
   std::uint64_t seed = 0;
 };

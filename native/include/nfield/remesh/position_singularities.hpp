@@ -69,11 +69,11 @@ struct CancellationReport {
 };
 
 /// Changes `offsets` so that as many regular triangles as possible have zero residual, at least total
-/// cost. level0 holds the vertex frames (q, n). `feature_edge` (per surface edge, may be empty) marks feature edges. `cancelled` is polled.
+/// cost. level0 holds the vertex frames (q, n) and spacings (a path's cost counts lattice steps of the
+/// local spacing). `feature_edge` (per surface edge, may be empty) marks feature edges. `cancelled` is polled.
 CancellationReport cancel_position_singularities(const RemeshSurface& surface, const HierarchyLevel& level0,
                                                  const std::vector<std::array<int, 3>>& face_edges,
-                                                 const std::vector<char>& feature_edge, double scale,
-                                                 LatticeOffsets& offsets, const CancellationOptions& options = {},
+                                                 const std::vector<char>& feature_edge, LatticeOffsets& offsets, const CancellationOptions& options = {},
                                                  const std::function<bool()>& cancelled = {});
 
 }  // namespace nfield::remesh

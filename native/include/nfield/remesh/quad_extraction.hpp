@@ -55,12 +55,13 @@ struct ProjectionTargets {
 ProjectionTargets make_projection_targets(const RemeshSurface& surface, const Features& features);
 
 /// `level0` is levels[0] after optimise_positions (one entry per surface vertex; its lattice points p give
-/// the output positions), `offsets` the integer offsets of its edges. `feature_kind_out` (optional)
-/// receives the FeatureKind of each output vertex. `split_thin_clusters`: a cluster whose surface points
-/// wrap round a part thinner than a lattice cell (normals against each other, its lattice point off the
-/// surface by 0.08 scale or more) is split into two output vertices, one per side.
+/// the output positions, its spacings the distances below), `offsets` the integer offsets of its edges.
+/// `feature_kind_out` (optional) receives the FeatureKind of each output vertex. `split_thin_clusters`: a
+/// cluster whose surface points wrap round a part thinner than a lattice cell (normals against each other,
+/// its lattice point off the surface by 0.08 lattice steps or more) is split into two output vertices, one
+/// per side.
 PolygonMesh extract_quad_mesh(const RemeshSurface& surface, const Features& features, const HierarchyLevel& level0,
-                              const LatticeOffsets& offsets, double scale, const ProjectionTargets& targets, int max_face_size,
+                              const LatticeOffsets& offsets, const ProjectionTargets& targets, int max_face_size,
                               ExtractionReport& report, std::vector<char>* feature_kind_out = nullptr,
                               bool split_thin_clusters = true);
 

@@ -4,7 +4,8 @@
 //      smaller than the target are left out (listed) or refused;
 //   2. features: boundary and sharp edges (dihedral angle above a threshold);
 //   3. vertex cross field: our face field moved to vertices, n-symmetrically (not optimised);
-//   4. hierarchy (multires_hierarchy.hpp) and 4-PoSy position field (position_field.hpp) with spacing s;
+//   4. hierarchy (multires_hierarchy.hpp) and 4-PoSy position field (position_field.hpp) with spacing s
+//      (or, adaptive_spacing, s e^u per vertex following the field's turning: lattice_spacing.hpp);
 //   5. extraction (quad_extraction.hpp): clusters, links, faces; manifold and oriented by construction;
 //   6. clean-up (quad_cleanup.hpp): doublets and triangle pairs merged, vertices relaxed;
 //   7. optional pure quads (pure_quads.hpp): the odd faces paired by paths of faces that are split into
@@ -26,6 +27,7 @@
 #include "nfield/remesh/pure_quads.hpp"
 #include "nfield/remesh/quad_cleanup.hpp"
 #include "nfield/remesh/far_point_fit.hpp"
+#include "nfield/remesh/lattice_spacing.hpp"
 #include "nfield/remesh/quad_diagonals.hpp"
 #include "nfield/remesh/quad_extraction.hpp"
 #include "nfield/remesh/quad_untangle.hpp"
@@ -53,6 +55,11 @@ struct QuadRemeshOptions {
   int pure_quad_cones = -1;
   bool fit_far_points = true;        ///< vertices moved onto input points the output misses (far_point_fit.hpp)
   bool split_thin_clusters = true;   ///< clusters wrapped round a thin part split per side (quad_extraction.hpp)
+  /// The lattice spacing follows the field's turning (lattice_spacing.hpp: edge_length e^u per vertex, u the
+  /// conformal scale, the mean face area kept) instead of edge_length everywhere. Not with
+  /// subdivide_for_pure_quads (its lattice twice as coarse keeps one spacing).
+  bool adaptive_spacing = true;
+  double max_spacing_ratio = 1.6;    ///< adaptive spacing within [edge_length / ratio, edge_length ratio], 1..4
 };
 
 struct QuadRemeshResult {
@@ -64,6 +71,7 @@ struct QuadRemeshResult {
   int num_boundary_feature_edges = 0, num_sharp_feature_edges = 0;
   int num_vertices_without_field = 0;
   double lattice_spacing = 0;
+  LatticeSpacingReport spacing;           ///< the adaptive spacing's range (ratios 1 when off)
   ExtractionReport extraction;
   CleanupReport cleanup;                  ///< quad_cleanup.hpp
   int cleanup_split_faces = 0;            ///< faces of 6 or more sides split (split_large_faces)
@@ -73,6 +81,7 @@ struct QuadRemeshResult {
   FarPointFitReport far_points;           ///< vertices moved onto input points the output missed
   int rotated_diagonals = 0;              ///< quads whose first vertex moved to split them nearer the input
   int moved_representatives = 0;          ///< vertices whose lattice point changed in the re-solve
+  bool flow_discarded = false;            ///< the flow's offsets changed the topology: extracted without them
   double seconds_setup = 0, seconds_hierarchy = 0, seconds_positions = 0, seconds_flow = 0, seconds_resolve = 0,
          seconds_extraction = 0;  ///< wall-clock seconds per step (flow: offsets + min-cost flow; resolve: position re-solve)
 };

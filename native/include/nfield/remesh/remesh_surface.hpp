@@ -59,6 +59,10 @@ RemeshSurface make_remesh_surface(const TriangleMesh& mesh);
 /// half the lattice spacing, otherwise neighbouring lattice points are missed by every edge.
 void refine_long_edges(RemeshSurface& surface, double max_length);
 
+/// The same with a limit per vertex: an edge is long when longer than the mean of its ends' limits, and a
+/// midpoint gets that mean (appended to `max_length`, which follows the vertices).
+void refine_long_edges(RemeshSurface& surface, std::vector<double>& max_length);
+
 /// Recomputes everything derived from positions and triangles (normals, areas, edges, adjacency,
 /// components).
 void finalize_surface(RemeshSurface& surface);
