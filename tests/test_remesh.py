@@ -304,11 +304,17 @@ def test_irregular_vertices_at_most_one_and_a_half_per_singularity(name):
     pentagon (measured at 2,000 faces: fertility 46 for 48 singularities, 0.96; rocker arm 31 for 31, 1.0;
     at 5,000 faces with the benchmark's field the two mends take fertility from 1.54 to 1.25). Cones left
     as clusters of three or four irregular vertices are mended by edge rotations and diagonal collapses
-    (lower_irregularity): the rocker arm here has 25 irregular vertices with them, 31 without."""
+    (lower_irregularity): the rocker arm here has 25 irregular vertices with them, 31 without. The mends are
+    checked on one lattice spacing, where these figures were measured: the adaptive spacing (the default,
+    whose target is checked first) moves the clusters with the field's last rounding digits, so which mends a
+    platform's build makes there varies (the Python 3.13 wheel: none needed on the rocker arm, 25 irregular)."""
     mesh = core_mesh(name)
     field = solve(mesh, n=4, order=2, align="curvature-max")
-    V, F, st = quad_remesh(mesh, field, target_faces=2000)
-    print(name, st["irregular_vertices"], st["field_singularities"], st["cleanup"])
+    default = quad_remesh(mesh, field, target_faces=2000).stats
+    assert default["irregular_per_singularity"] <= 1.5
+    assert default["manifold"] and default["oriented"] and default["inverted_faces"] == 0
+    V, F, st = quad_remesh(mesh, field, target_faces=2000, adaptive_spacing=False)
+    print(name, default["irregular_vertices"], st["irregular_vertices"], st["field_singularities"], st["cleanup"])
     assert st["irregular_per_singularity"] <= 1.5
     assert st["cleanup"]["split_cones"] + st["cleanup"]["merged_cones"] > 0
     assert st["manifold"] and st["oriented"] and st["inverted_faces"] == 0
@@ -431,11 +437,16 @@ def test_line_field_and_array_and_session_inputs(fandisk):
     # With the adaptive spacing (the default), a global solve of the field's turning, rounding-level
     # differences of the field reach the output's positions: the per-face vectors and the representation
     # give the same faces, the vertices within 1e-3 of the edge length (measured 8.2e-5 = 2.3e-4 h). The
-    # session's field (1e-13 off) gave 469 faces against 471: not compared.
+    # session's field (1e-13 off) gave 469 faces against 471: not compared. A face may start at another of
+    # its vertices (step 14 picks the diagonal nearer the input, a near tie between the two on some
+    # platforms' builds), so the faces are compared as vertex cycles.
+    def cycle(face):
+        k = face.index(min(face))
+        return face[k:] + face[:k]
     a = quad_remesh(mesh, field, target_faces=500, stats=False)
     for other in (quad_remesh(mesh, field.directions, target_faces=500, stats=False),
                   quad_remesh(mesh, field.representation, n=4, target_faces=500, stats=False)):
-        assert other.faces == a.faces
+        assert [cycle(f) for f in other.faces] == [cycle(f) for f in a.faces]
         assert np.abs(other.vertices - a.vertices).max() <= 1e-3 * a.stats["edge_length"]
 
 

@@ -95,8 +95,15 @@ def test_a_lattice_pinched_by_the_flow_is_remeshed_with_one_spacing():
     field = solve(mesh, n=4, order=2, align="curvature-max", constraints=[
         DirectionConstraint(int(mesh.triangle_face[f]), tuple(np.asarray(pc["dir_max"])[f].tolist())) for f in faces])
     retried = quad_remesh(mesh, field, target_faces=5000, max_spacing_ratio=1.4).stats
+    retry_said = any("remeshed with one spacing" in m for m in retried["messages"])
+    pinch_kept = any("changed the topology" in m for m in retried["messages"])
+    # A pinch left without the retry fails here on any build; whether this case pinches at all depends on
+    # the field's last rounding digits (the Python 3.13 wheel, with NumPy 2, lays this lattice without one).
+    assert not pinch_kept, retried["messages"]
+    if not retry_said:
+        pytest.skip("this build's lattice does not pinch fandisk at max_spacing_ratio=1.4 (nothing to retry); "
+                    f"messages: {retried['messages']}")
     constant = quad_remesh(mesh, field, target_faces=5000, adaptive_spacing=False).stats
-    assert any("remeshed with one spacing" in m for m in retried["messages"]), retried["messages"]
     assert retried["irregular_vertices"] == constant["irregular_vertices"]
     ps = retried["position_singularities"]
     assert ps["after"] < ps["before"] and retried["inverted_faces"] == 0
