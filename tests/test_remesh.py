@@ -553,6 +553,7 @@ def test_cli_remesh(tmp_path):
     assert r.returncode == 2 and "too small for the target edge length" in r.stderr
 
 
+@pytest.mark.no_sanitizer  # reads bench/ (not copied into the sanitizer job's tree); no native code
 def test_benchmark_names_the_missing_instant_meshes_peer(monkeypatch, tmp_path):
     """bench/remesh.py looks for the benchmark-only peer in bench/.peers (where `build_addon.py bench`
     installs it); when it is missing, the peer's row fails with a message saying how to install it."""
