@@ -77,6 +77,13 @@ MESH_NAMES = (
 )
 
 
+def face_cycle(face) -> list:
+    """A polygon's vertex cycle started at its smallest index (same cycle, same orientation), to compare
+    faces whose first vertex may differ."""
+    k = list(face).index(min(face))
+    return list(face[k:]) + list(face[:k])
+
+
 def mesh_path(name: str) -> Path:
     """Absolute path of a test mesh in tests/data/, e.g. ``mesh_path("rocker-arm.obj")``.
 

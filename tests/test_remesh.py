@@ -14,7 +14,7 @@ import threading
 import numpy as np
 import pytest
 
-from conftest import MESH_NAMES, core_mesh, mesh_path, package_env, run_beside_main_loop
+from conftest import MESH_NAMES, core_mesh, face_cycle, mesh_path, package_env, run_beside_main_loop
 import meshgen
 import mesh_reference as mref
 from nfield.core import (
@@ -440,13 +440,10 @@ def test_line_field_and_array_and_session_inputs(fandisk):
     # session's field (1e-13 off) gave 469 faces against 471: not compared. A face may start at another of
     # its vertices (step 14 picks the diagonal nearer the input, a near tie between the two on some
     # platforms' builds), so the faces are compared as vertex cycles.
-    def cycle(face):
-        k = face.index(min(face))
-        return face[k:] + face[:k]
     a = quad_remesh(mesh, field, target_faces=500, stats=False)
     for other in (quad_remesh(mesh, field.directions, target_faces=500, stats=False),
                   quad_remesh(mesh, field.representation, n=4, target_faces=500, stats=False)):
-        assert [cycle(f) for f in other.faces] == [cycle(f) for f in a.faces]
+        assert [face_cycle(f) for f in other.faces] == [face_cycle(f) for f in a.faces]
         assert np.abs(other.vertices - a.vertices).max() <= 1e-3 * a.stats["edge_length"]
 
 

@@ -11,15 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import core_mesh
+from conftest import core_mesh, face_cycle
 import meshgen
 from nfield.core import Mesh, quad_remesh, solve
-
-
-def _from_smallest(face):
-    """The face's vertex cycle started at its smallest index (same cycle, same orientation)."""
-    k = face.index(min(face))
-    return list(face[k:]) + list(face[:k])
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +99,7 @@ def test_quads_are_split_along_the_diagonal_nearer_the_input(box_across):
     # so only the input -> output side can change: the chosen splits measured 0.43x the other ones.
     assert chosen < 0.6 * swapped
     # Only the first vertex changes: the faces as cycles are the same either way.
-    assert sorted(map(tuple, map(_from_smallest, other))) == sorted(map(tuple, map(_from_smallest, r.faces)))
+    assert sorted(map(tuple, map(face_cycle, other))) == sorted(map(tuple, map(face_cycle, r.faces)))
 
 
 @pytest.fixture(scope="module")
@@ -127,7 +121,7 @@ def test_fit_moves_vertices_onto_the_cut_rim_and_keeps_the_faces(leaf):
     assert a["far_points"]["passes"] == 0 and a["far_points"]["moves"] == 0
     # Only positions change: the same faces (up to the first vertex, which quad_diagonals.hpp chooses from
     # the positions), the same irregular vertices.
-    assert [_from_smallest(f) for f in fitted.faces] == [_from_smallest(f) for f in plain.faces]
+    assert [face_cycle(f) for f in fitted.faces] == [face_cycle(f) for f in plain.faces]
     assert b["irregular_vertices"] == a["irregular_vertices"]
     # The fit itself moves few vertices (each move is a vertex, or a vertex and its neighbours: at most 9 on
     # a quad mesh). The default pipeline relaxes every vertex once more after it (refine_along_field), so
